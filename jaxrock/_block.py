@@ -1,0 +1,46 @@
+"""The rigid block."""
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._misc import GRAVITY, as_float, positive
+
+
+class Block(eqx.Module):
+    """A rectangular rigid block, 2b wide and 2h high (SI units).
+
+    `slenderness` is lambda = h / b (> 0) and `size` is r = sqrt(b^2 + h^2) (m), the
+    half-diagonal. Derived: alpha = atan(b / h) (rad), b = r sin(alpha),
+    h = r cos(alpha), and the frequency parameter p = sqrt(3 g / (4 r)) (rad/s).
+    Results do not depend on the block's mass, only on the mass ratio of the base.
+    Both fields may carry batch axes (for `vmap`).
+    """
+
+    slenderness: Float[Array, "..."] = eqx.field(converter=as_float)
+    size: Float[Array, "..."] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        positive("slenderness", self.slenderness)
+        positive("size", self.size)
+
+    @property
+    def alpha(self) -> Float[Array, "..."]:
+        return jnp.arctan(1.0 / self.slenderness)
+
+    @property
+    def b(self) -> Float[Array, "..."]:
+        return self.size * jnp.sin(self.alpha)
+
+    @property
+    def h(self) -> Float[Array, "..."]:
+        return self.size * jnp.cos(self.alpha)
+
+    @property
+    def p(self) -> Float[Array, "..."]:
+        return jnp.sqrt(3.0 * GRAVITY / (4.0 * self.size))
+
+    @property
+    def uplift_acceleration(self) -> Float[Array, "..."]:
+        """g tan(alpha) = g b / h (m/s^2): the absolute base acceleration that uplifts."""
+        return GRAVITY / self.slenderness

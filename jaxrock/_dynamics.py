@@ -1,0 +1,125 @@
+"""Equations of motion of a block on a base, both regimes in one vector field.
+
+State y = (theta, theta', base state), base state None (fixed base),
+(u, u') (linear isolator) or (u, u', z) (friction pendulum). SI units.
+The regime enters through `sign`: 0 in pure translation (theta = 0), and
+s = sgn(theta) = +1 or -1 while rocking about the corner at x = +b or -b.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._block import Block
+from ._ground import AbstractGroundMotion
+from ._isolators import AbstractIsolator, FixedBase
+from ._misc import GRAVITY
+
+
+class Phase:
+    """The segment loop's phases (integer codes, usable under `jit` and `vmap`).
+
+    Rocking is split at each apex (theta' = 0), so that every excursion from
+    theta = 0 shows a sign change of its event condition at step ends.
+    """
+
+    TRANSLATION = 0  # theta = 0, the block moves with the base
+    RISING = 1  # s theta' > 0: |theta| grows
+    FALLING = 2  # s theta' < 0: |theta| shrinks towards an impact
+
+
+class Args(eqx.Module):
+    """What the vector field and the event conditions read, besides (t, y)."""
+
+    block: Block
+    base: AbstractIsolator
+    motion: AbstractGroundMotion
+    phase: jnp.ndarray
+    sign: jnp.ndarray
+    max_base_displacement: jnp.ndarray  # running max |u| so far (m)
+
+
+def _geometry(block, theta, s):
+    """c1 = h cos(theta) + s b sin(theta), s1 = s b cos(theta) - h sin(theta)."""
+    cos, sin = jnp.cos(theta), jnp.sin(theta)
+    return block.h * cos + s * block.b * sin, s * block.b * cos - block.h * sin
+
+
+def vector_field(t, y, args: Args):
+    """Lagrange's equations of Sec. 2 of the paper (see PHYSICS.md), per unit m.
+
+    Rocking:  u'' + mu c1 theta'' + mu s1 theta'^2 + f = -x_g''
+              c1 u'' + (4/3) r^2 theta'' + g s1     = -c1 x_g''
+    with mu = m / M and f = F / M; translation: u'' = -f - x_g'', theta'' = 0.
+    Fixed base: theta'' = -(3 / (4 r^2)) (c1 x_g'' + g s1).
+    """
+    theta, theta_dot, base_state = y
+    block, base = args.block, args.base
+    rocking = args.phase != Phase.TRANSLATION
+    s = jnp.where(rocking, args.sign, 1.0)
+    c1, s1 = _geometry(block, theta, s)
+    ag = args.motion.acceleration(t)
+    j = 4.0 / 3.0 * block.size**2
+    if isinstance(base, FixedBase):
+        theta_ddot = -(c1 * ag + GRAVITY * s1) / j
+        return (
+            jnp.where(rocking, theta_dot, 0.0),
+            jnp.where(rocking, theta_ddot, 0.0),
+            None,
+        )
+    f = base.force(base_state)
+    mu = base.block_mass_fraction
+    det = j - mu * c1**2
+    rhs_u = -ag - mu * s1 * theta_dot**2 - f
+    rhs_theta = -c1 * ag - GRAVITY * s1
+    u_ddot_rocking = (j * rhs_u - mu * c1 * rhs_theta) / det
+    theta_ddot = (rhs_theta - c1 * rhs_u) / det
+    u_ddot = jnp.where(rocking, u_ddot_rocking, -ag - f)
+    return (
+        jnp.where(rocking, theta_dot, 0.0),
+        jnp.where(rocking, theta_ddot, 0.0),
+        base.rates(base_state, u_ddot),
+    )
+
+
+def absolute_base_acceleration(t, base_state, base, motion):
+    """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
+    if isinstance(base, FixedBase):
+        return motion.acceleration(t)
+    return -base.force(base_state)
+
+
+def restitution(block: Block, base: AbstractIsolator):
+    """e = theta'+ / theta'- for re-uplift (Eq. 2.13), per unit block mass.
+
+    den = 4 m_b h^2 + 4 m_b b^2 + m h^2 + 4 m b^2,
+    num = 4 m_b h^2 - 2 m_b b^2 + m h^2 - 2 m b^2; fixed base: 1 - 1.5 sin^2 alpha.
+    Returns (e, den / m_b) with m = 1, written in mu = m / M so that mu = 0 is the
+    fixed base.
+    """
+    mu = base.block_mass_fraction
+    h2, b2 = block.h**2, block.b**2
+    # Divide num and den by m_b and use m / m_b = mu / (1 - mu).
+    ratio = mu / (1.0 - mu)
+    den = 4.0 * h2 + 4.0 * b2 + ratio * (h2 + 4.0 * b2)
+    num = 4.0 * h2 - 2.0 * b2 + ratio * (h2 - 2.0 * b2)
+    return num / den, den
+
+
+def impact(block, base, theta_dot, base_state, rest):
+    """Jump map at theta = 0 (Eqs. 2.13-2.15): post-impact (theta', base state).
+
+    Re-uplift about the other corner: theta'+ = e theta'-,
+        u'+ = u'- + 6 m h b^2 theta'- / den.
+    Rocking ends (`rest`): theta'+ = 0, u'+ = u'- + m h theta'- / M.
+    Both conserve the linear momentum M u' + m h theta' of block and base.
+    """
+    e, den_per_mb = restitution(block, base)
+    new_theta_dot = jnp.where(rest, 0.0, e * theta_dot)
+    if base_state is None:
+        return new_theta_dot, None
+    mu = base.block_mass_fraction
+    # m / den = (m / m_b) / (den / m_b) and m / M = mu.
+    kick_uplift = 6.0 * (mu / (1.0 - mu)) * block.h * block.b**2 / den_per_mb
+    kick_rest = mu * block.h
+    kick = jnp.where(rest, kick_rest, kick_uplift)
+    return new_theta_dot, base_state.at[1].add(kick * theta_dot)

@@ -1,0 +1,127 @@
+"""Event conditions of the segment loop and the root finder that locates them.
+
+Every condition is positive inside its phase and is armed with
+`direction=False` (it fires when it goes from > 0 to <= 0 between two step
+ends), so a segment that starts exactly on a zero does not fire again at once.
+
+| phase       | "a" fires at                      | "b" fires at                     |
+|-------------|-----------------------------------|----------------------------------|
+| TRANSLATION | u'' + x_g'' = -g tan(alpha): s=+1 | u'' + x_g'' = +g tan(alpha): s=-1 |
+| RISING      | s theta = pi / 2: overturn        | theta' = 0: apex                  |
+| FALLING     | theta = 0: impact                 | theta' = 0: rising again          |
+
+"base" (isolated bases only) fires where |u| has a local maximum above the
+running maximum, so max |u| is an exact extremum, not a sampled one.
+Diffrax lets the first condition in PyTree order win when several fire in one
+step, so the physical conditions come before "base".
+"""
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+from jaxtyping import Array, Float
+
+from ._dynamics import Args, Phase, absolute_base_acceleration
+
+
+def _select(phase, translation, rising, falling):
+    return jnp.where(
+        phase == Phase.TRANSLATION,
+        translation,
+        jnp.where(phase == Phase.RISING, rising, falling),
+    )
+
+
+def condition_a(t, y, args: Args, **kwargs):
+    del kwargs
+    theta, _, base_state = y
+    a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
+    s_theta = args.sign * theta
+    return _select(
+        args.phase,
+        a_abs + args.block.uplift_acceleration,
+        0.5 * jnp.pi - s_theta,
+        s_theta,
+    )
+
+
+def condition_b(t, y, args: Args, **kwargs):
+    del kwargs
+    _, theta_dot, base_state = y
+    a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
+    s_theta_dot = args.sign * theta_dot
+    return _select(
+        args.phase,
+        args.block.uplift_acceleration - a_abs,
+        s_theta_dot,
+        -s_theta_dot,
+    )
+
+
+def condition_base(t, y, args: Args, **kwargs):
+    """max(d|u|/dt, max|u| so far - |u|): <= 0 only at a new maximum of |u|."""
+    del t, kwargs
+    u, u_dot = y[2][0], y[2][1]
+    return jnp.maximum(jnp.sign(u) * u_dot, args.max_base_displacement - jnp.abs(u))
+
+
+class _BracketState(eqx.Module):
+    lower: Float[Array, ""]
+    upper: Float[Array, ""]
+    step: Float[Array, ""]
+
+
+class BracketedNewton(optx.AbstractRootFinder):
+    """Newton's method kept inside a bracket, falling back to bisection.
+
+    For a scalar root in t of a function that is > 0 at `lower` and <= 0 at
+    `upper` (Diffrax's `lower`/`upper` options: the step that saw the sign
+    change). The function may return a PyTree of scalars of which all but one are
+    zero (as Diffrax passes the conditions); they are summed. Terminates when the
+    Newton step is below atol + rtol |t|. Plain `optimistix.Newton` can leave
+    the bracket and stall near double roots (DIFFRAX_NOTES.md).
+    """
+
+    rtol: float
+    atol: float
+    norm: ClassVar = jnp.abs
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):
+        del fn, args, f_struct, aux_struct, tags
+        return _BracketState(
+            lower=jnp.asarray(options["lower"], y.dtype),
+            upper=jnp.asarray(options["upper"], y.dtype),
+            step=jnp.asarray(jnp.inf, y.dtype),
+        )
+
+    def step(self, fn, y, args, options, state, tags):
+        del options, tags
+
+        def scalar(t):
+            value, aux = fn(t, args)
+            return sum(jax.tree_util.tree_leaves(value)), aux
+
+        value, slope, aux = jax.jvp(scalar, (y,), (jnp.ones_like(y),), has_aux=True)
+        positive = value > 0
+        lower = jnp.where(positive, y, state.lower)
+        upper = jnp.where(positive, state.upper, y)
+        newton = y - value / jnp.where(slope == 0, 1.0, slope)
+        inside = (slope != 0) & (newton > lower) & (newton < upper)
+        inside = inside & jnp.isfinite(newton)
+        new_y = jnp.where(inside, newton, 0.5 * (lower + upper))
+        new_y = jnp.where(value == 0, y, new_y)
+        return new_y, _BracketState(lower, upper, jnp.abs(new_y - y)), aux
+
+    def terminate(self, fn, y, args, options, state, tags):
+        del fn, args, options, tags
+        scale = self.atol + self.rtol * jnp.abs(y)
+        done = (state.step < scale) | (state.upper - state.lower < scale)
+        return done, optx.RESULTS.successful
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):
+        del fn, args, options, state, tags, result
+        return y, aux, {}
+

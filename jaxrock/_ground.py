@@ -1,0 +1,202 @@
+"""Ground motions: the Mavroeidis-Papageorgiou pulse and recorded accelerograms."""
+
+import abc
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._misc import as_float, check, positive
+
+
+class AbstractGroundMotion(eqx.Module):
+    """Horizontal ground acceleration x_g''(t) (m/s^2), zero before t = 0."""
+
+    @abc.abstractmethod
+    def acceleration(self, t: Float[Array, ""]) -> Float[Array, ""]:
+        """x_g''(t) in m/s^2."""
+
+    @property
+    @abc.abstractmethod
+    def end_time(self) -> Float[Array, ""]:
+        """When the excitation ends (s)."""
+
+    @property
+    @abc.abstractmethod
+    def step_ts(self) -> Float[Array, " k"]:
+        """Kinks of x_g'' (s): the integrator never steps across them."""
+
+    @property
+    def jump_ts(self) -> Float[Array, " k"] | None:
+        """Discontinuities of x_g'' (s): the integrator restarts after them."""
+        return None
+
+    @property
+    def max_step(self) -> Float[Array, ""] | None:
+        """Largest integration step (s), so that no uplift hides inside a step."""
+        return None
+
+
+class MPPulse(AbstractGroundMotion):
+    """Mavroeidis & Papageorgiou (2003) near-fault pulse (Eq. 3.1 of the paper).
+
+    Ground velocity, for |t - t0| <= gamma / (2 f_p), zero elsewhere:
+        v(t) = A/2 [1 + cos(2 pi f_p (t - t0) / gamma)] cos(2 pi f_p (t - t0) + nu)
+    and x_g'' = v'. `amplitude` A (m/s), `frequency` f_p (Hz) > 0, `gamma` > 1,
+    `phase` nu in degrees, `t0` (s) the envelope's peak; by default
+    t0 = gamma / (2 f_p), so that the pulse starts at t = 0.
+    """
+
+    amplitude: Float[Array, "..."] = eqx.field(converter=as_float)
+    frequency: Float[Array, "..."] = eqx.field(converter=as_float)
+    gamma: Float[Array, "..."] = eqx.field(converter=as_float)
+    phase: Float[Array, "..."] = eqx.field(converter=as_float)
+    t0: Float[Array, "..."] = eqx.field(converter=as_float)
+
+    def __init__(self, amplitude, frequency, gamma, phase, t0=None):
+        self.amplitude = amplitude
+        self.frequency = frequency
+        self.gamma = gamma
+        self.phase = phase
+        self.t0 = 0.5 * as_float(gamma) / as_float(frequency) if t0 is None else t0
+
+    def __check_init__(self):
+        check("amplitude", self.amplitude, lambda v: v == v, "finite")
+        positive("frequency", self.frequency)
+        check("gamma", self.gamma, lambda v: v > 1, "finite and > 1")
+        check("phase", self.phase, lambda v: v == v, "finite (degrees)")
+        check("t0", self.t0, lambda v: v == v, "finite")
+
+    @property
+    def half_duration(self):
+        return 0.5 * self.gamma / self.frequency
+
+    def acceleration(self, t):
+        tau = t - self.t0
+        w = 2.0 * jnp.pi * self.frequency
+        nu = jnp.deg2rad(self.phase)
+        envelope = w * tau / self.gamma
+        a = -(self.amplitude * jnp.pi * self.frequency / self.gamma) * (
+            jnp.sin(envelope) * jnp.cos(w * tau + nu)
+            + self.gamma * jnp.sin(w * tau + nu) * (1.0 + jnp.cos(envelope))
+        )
+        return jnp.where(jnp.abs(tau) <= self.half_duration, a, 0.0)
+
+    def velocity(self, t):
+        """Ground velocity v(t) (m/s)."""
+        tau = t - self.t0
+        w = 2.0 * jnp.pi * self.frequency
+        v = (
+            0.5
+            * self.amplitude
+            * (1.0 + jnp.cos(w * tau / self.gamma))
+            * jnp.cos(w * tau + jnp.deg2rad(self.phase))
+        )
+        return jnp.where(jnp.abs(tau) <= self.half_duration, v, 0.0)
+
+    @property
+    def end_time(self):
+        return self.t0 + self.half_duration
+
+    @property
+    def step_ts(self):
+        return jnp.stack([self.t0 - self.half_duration, self.t0 + self.half_duration])
+
+    @property
+    def max_step(self):
+        # x_g'' oscillates at f_p: 32 steps a cycle keep any excursion of |x_g''|
+        # beyond a threshold that lies inside one step below 0.5% of its peak.
+        return 1.0 / (32.0 * self.frequency)
+
+
+class Record(AbstractGroundMotion):
+    """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s).
+
+    Sample k is at t = k dt; linear between samples, zero after the last one.
+    The samples are kept as `samples`.
+    """
+
+    samples: Float[Array, " n"] = eqx.field(converter=as_float)
+    dt: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def __init__(self, acceleration, dt):
+        self.samples = acceleration
+        self.dt = dt
+
+    def __check_init__(self):
+        samples = self.samples
+        if np.ndim(samples) != 1 or np.shape(samples)[0] < 2:
+            raise ValueError(
+                "`acceleration` must be a 1-D array of at least 2 samples, got shape "
+                f"{np.shape(samples)}"
+            )
+        check("acceleration", samples, lambda v: v == v, "finite (no NaN or inf)")
+        positive("dt", self.dt)
+
+    def acceleration(self, t):
+        a = self.samples
+        n = a.shape[0]
+        x = t / self.dt
+        k = jnp.clip(jnp.floor(x), 0, n - 2).astype(int)
+        frac = x - k
+        value = a[k] + (a[k + 1] - a[k]) * frac
+        return jnp.where((t >= 0) & (t <= (n - 1) * self.dt), value, 0.0)
+
+    @property
+    def end_time(self):
+        return (self.samples.shape[0] - 1) * self.dt
+
+    @property
+    def step_ts(self):
+        return self.dt * jnp.arange(self.samples.shape[0])
+
+    @property
+    def jump_ts(self):
+        # x_g'' drops from the last sample to zero.
+        return self.end_time[None]
+
+    @property
+    def peak_acceleration(self):
+        return jnp.max(jnp.abs(self.samples))
+
+
+# Table 3.1 of the paper (Mavroeidis & Papageorgiou 2003 fits):
+# name -> (A in cm/s, gamma, nu in degrees, f_p in Hz)
+_TABLE_3_1 = {
+    "Parkfield C02/SN": (60.0, 1.700, 100.0, 0.500),
+    "San Fernando PCD/SN": (115.0, 1.600, 180.0, 0.680),
+    "Bucharest BRI/SN": (62.0, 2.400, 200.0, 0.470),
+    "Tabas TAB/SP": (104.0, 2.200, 180.0, 0.190),
+    "Imperial Valley E04/SN": (71.0, 1.900, 305.0, 0.225),
+    "Imperial Valley E05/SN": (84.0, 1.900, 300.0, 0.255),
+    "Imperial Valley E06/SN": (96.0, 2.100, 265.0, 0.260),
+    "Imperial Valley E07/SN": (79.0, 2.100, 25.0, 0.275),
+    "Imperial Valley EMO/SN": (78.0, 2.300, 0.0, 0.340),
+    "Northridge JFA/SN": (87.0, 2.300, 100.0, 0.330),
+    "Northridge RRS/SN": (142.0, 1.700, 20.0, 0.800),
+    "Northridge SCG/SN": (93.0, 2.500, 0.0, 0.340),
+    "Northridge SCH/SN": (80.0, 2.300, 0.0, 0.330),
+    "Northridge NWS/SN": (94.0, 1.700, 200.0, 0.370),
+    "Aigion AEG/Lon": (44.5, 1.450, 75.0, 1.400),
+    "Aigion AEG/Tran": (61.0, 1.200, 205.0, 1.480),
+    "Izmit ARC/SN": (41.0, 1.380, 225.0, 0.140),
+    "Izmit SKR/SP": (67.0, 1.023, 5.0, 0.105),
+    "Izmit GBZ/SN": (34.5, 2.200, 220.0, 0.210),
+    "Izmit GBZ/SP": (28.0, 1.800, 85.0, 0.165),
+}
+
+NEAR_FAULT_PULSES: tuple[str, ...] = tuple(_TABLE_3_1)
+
+
+def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
+    """The pulse fitted to a record of the paper's Table 3.1, e.g. "Northridge JFA/SN".
+
+    `scale` multiplies the amplitude. `NEAR_FAULT_PULSES` lists the names.
+    """
+    if name not in _TABLE_3_1:
+        raise ValueError(
+            f"unknown pulse {name!r}; choose one of: {', '.join(NEAR_FAULT_PULSES)}"
+        )
+    amplitude_cm, gamma, phase, frequency = _TABLE_3_1[name]
+    return MPPulse(scale * amplitude_cm / 100.0, frequency, gamma, phase)

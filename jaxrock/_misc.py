@@ -1,0 +1,42 @@
+"""Small shared helpers: constants and construction-time checks."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+GRAVITY = 9.81  # m/s^2
+
+
+def as_float(x):
+    """Converter for physical parameters: a float64 (when x64 is on) JAX array."""
+    return jnp.asarray(x, dtype=float)
+
+
+def _concrete(x):
+    """The value as a NumPy array, or None when it is traced (checks skipped)."""
+    if isinstance(x, jax.core.Tracer):
+        return None
+    return np.asarray(x)
+
+
+def check(name: str, x, ok, allowed: str) -> None:
+    """Raise `ValueError` naming `name` and the allowed range unless `ok(x)` holds.
+
+    Skipped for traced values (inside `jit`/`vmap`), where the caller's concrete
+    inputs have been checked already.
+    """
+    value = _concrete(x)
+    if value is None:
+        return
+    if not np.all(np.isfinite(value)) or not np.all(ok(value)):
+        bad = value if value.ndim == 0 else value[~(np.isfinite(value) & ok(value))]
+        shown = np.ravel(bad)[:3].tolist()
+        raise ValueError(f"`{name}` must be {allowed}, got {shown[0] if value.ndim == 0 else shown}")
+
+
+def positive(name: str, x) -> None:
+    check(name, x, lambda v: v > 0, "finite and > 0")
+
+
+def nonnegative(name: str, x) -> None:
+    check(name, x, lambda v: v >= 0, "finite and >= 0")

@@ -1,0 +1,466 @@
+"""One analysis: the segment loop of a hybrid (event-driven) rocking simulation.
+
+Each segment is one Diffrax solve of the vector field in one phase (translation,
+rising, falling) until an event (uplift, apex, impact, rising again, overturn,
+a new peak of |u|) or the end of the window; the loop then applies the
+transition (the impact map at an impact) and starts the next segment. The loop
+is a `lax.while_loop`, so `simulate` runs under `jit` and `vmap`: a finished
+lane performs zero-length solves until every lane is done.
+"""
+
+import dataclasses
+from enum import IntEnum
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int
+
+from ._block import Block
+from ._dynamics import (
+    Args,
+    Phase,
+    absolute_base_acceleration,
+    impact,
+    restitution,
+    vector_field,
+)
+from ._events import BracketedNewton, condition_a, condition_b, condition_base
+from ._ground import AbstractGroundMotion
+from ._isolators import AbstractIsolator, FixedBase
+from ._misc import as_float, positive
+
+
+class Outcome(IntEnum):
+    """Outcome of one analysis (the colours of a behavior map)."""
+
+    NO_ROCKING = 0
+    ROCKING = 1
+    OVERTURNED = 2
+
+
+class Status(IntEnum):
+    """How an analysis ended. Anything but SUCCESS means the numbers are not final."""
+
+    SUCCESS = 0
+    MAX_STEPS = 1  # a segment hit the solver's step limit (`max_steps`)
+    MAX_SEGMENTS = 2  # the loop hit `max_segments` before the end of the window
+    SOLVER_FAILED = 3  # the step-size controller or the event root finder failed
+
+
+class EventKind(IntEnum):
+    """What ended a segment (reported in `History.event_kinds`)."""
+
+    END = 0
+    UPLIFT = 1
+    APEX = 2
+    IMPACT = 3  # impact followed by re-uplift about the other corner
+    REST = 4  # impact after which rocking ends (pure translation)
+    OVERTURN = 5
+    REVERSAL = 6  # theta' changed sign before reaching theta = 0
+    BASE_PEAK = 7  # a new maximum of |u|
+    FAILURE = 8
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverOptions:
+    """Numerical options (static: changing them recompiles).
+
+    `rtol`, `atol`: Tsit5's PID tolerances. `max_steps`: step limit of one
+    segment. `max_segments`: limit on segments (events) of one analysis.
+    `rest_tolerance`: rest rule against Zeno chattering: rocking ends at an
+    impact when the rebound could lift the block by less than
+    `rest_tolerance * alpha`, estimated as theta'+^2 / (2 p^2 sin alpha) (free
+    rocking from theta = 0), or when e <= 0 (Eq. 2.13).
+    """
+
+    rtol: float = 1e-8
+    atol: float = 1e-10
+    max_steps: int = 16384
+    max_segments: int = 2000
+    rest_tolerance: float = 1e-6
+
+
+class History(eqx.Module):
+    """Time histories of one analysis (SI units), sampled and at every event."""
+
+    t: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    u: np.ndarray
+    u_dot: np.ndarray
+    z: np.ndarray
+    regime: np.ndarray  # 0 translation, +1 / -1 rocking about x = +b / -b
+    ground_acceleration: np.ndarray
+    event_times: np.ndarray
+    event_kinds: tuple[str, ...]
+
+
+class Response(eqx.Module):
+    """Result of `simulate` (and, with leading axes, of a behavior map).
+
+    outcome: `Outcome` code. max_rotation: max |theta| / alpha (pi / (2 alpha)
+    when overturned). max_base_displacement: max |u| (m), 0 on a fixed base.
+    impacts: number of impacts. uplift_time: first uplift (s), NaN if none.
+    status: `Status` code. steps, segments: solver steps and loop segments.
+    history: `History` when asked for, else None.
+    """
+
+    outcome: Int[Array, "..."]
+    max_rotation: Float[Array, "..."]
+    max_base_displacement: Float[Array, "..."]
+    impacts: Int[Array, "..."]
+    uplift_time: Float[Array, "..."]
+    status: Int[Array, "..."]
+    steps: Int[Array, "..."]
+    segments: Int[Array, "..."]
+    history: History | None = None
+
+    @property
+    def ok(self):
+        return self.status == Status.SUCCESS
+
+    def summary(self) -> str:
+        """One line: outcome, max rotation, max base displacement, impacts."""
+        outcome = Outcome(int(self.outcome)).name
+        uplift = float(self.uplift_time)
+        text = (
+            f"{outcome}: max|theta|/alpha = {float(self.max_rotation):.6g}, "
+            f"max|u| = {float(self.max_base_displacement):.6g} m, "
+            f"impacts = {int(self.impacts)}, uplift at "
+            + ("never" if np.isnan(uplift) else f"{uplift:.6g} s")
+        )
+        if int(self.status) != Status.SUCCESS:
+            text += f" [status {Status(int(self.status)).name}: not converged]"
+        return text
+
+
+class _Carry(eqx.Module):
+    t: Float[Array, ""]
+    y: tuple
+    phase: Int[Array, ""]
+    sign: Float[Array, ""]
+    max_theta: Float[Array, ""]
+    max_u: Float[Array, ""]
+    impacts: Int[Array, ""]
+    uplift_time: Float[Array, ""]
+    rocked: Bool[Array, ""]
+    overturned: Bool[Array, ""]
+    status: Int[Array, ""]
+    segments: Int[Array, ""]
+    steps: Int[Array, ""]
+    done: Bool[Array, ""]
+    kind: Int[Array, ""]
+
+
+def _uplift_now(t, y, phase, block, base, motion):
+    """In translation with |u'' + x_g''| >= g tan(alpha): rocking starts at once.
+
+    Returns (uplift, sign). Applies at t = 0 and when rocking ends at an impact.
+    """
+    a_abs = absolute_base_acceleration(t, y[2], base, motion)
+    threshold = block.uplift_acceleration
+    uplift = (phase == Phase.TRANSLATION) & (jnp.abs(a_abs) >= threshold)
+    return uplift, jnp.where(a_abs < 0, 1.0, -1.0)
+
+
+def _initial_carry(block, base, motion) -> _Carry:
+    zero = jnp.zeros((), dtype=block.size.dtype)
+    t = zero
+    y = (zero, zero, base.initial_state())
+    phase = jnp.asarray(Phase.TRANSLATION)
+    uplift, sign = _uplift_now(t, y, phase, block, base, motion)
+    return _Carry(
+        t=t,
+        y=y,
+        phase=jnp.where(uplift, Phase.RISING, phase),
+        sign=sign,
+        max_theta=zero,
+        max_u=zero,
+        impacts=jnp.asarray(0),
+        uplift_time=jnp.where(uplift, t, jnp.nan),
+        rocked=uplift,
+        overturned=jnp.asarray(False),
+        status=jnp.asarray(Status.SUCCESS),
+        segments=jnp.asarray(0),
+        steps=jnp.asarray(0),
+        done=jnp.asarray(False),
+        kind=jnp.asarray(EventKind.END),
+    )
+
+
+def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
+    """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
+    active = ~c.done & (c.segments < opts.max_segments)
+    args = Args(block, base, motion, c.phase, c.sign, c.max_u)
+    conditions = (condition_a, condition_b)
+    if not isinstance(base, FixedBase):
+        conditions = conditions + (condition_base,)
+    event = diffrax.Event(
+        conditions,
+        root_finder=BracketedNewton(rtol=1e-14, atol=1e-12),
+        direction=False,
+    )
+    controller = diffrax.PIDController(
+        rtol=opts.rtol,
+        atol=opts.atol,
+        dtmax=motion.max_step,
+        step_ts=motion.step_ts,
+        jump_ts=motion.jump_ts,
+    )
+    return diffrax.diffeqsolve(
+        diffrax.ODETerm(vector_field),
+        diffrax.Tsit5(),
+        t0=c.t,
+        # A finished lane makes a zero-length solve (vmap runs every lane's body).
+        t1=jnp.where(active, duration, c.t),
+        dt0=None,
+        y0=c.y,
+        args=args,
+        event=event,
+        stepsize_controller=controller,
+        saveat=diffrax.SaveAt(t1=True, dense=dense),
+        max_steps=opts.max_steps,
+        throw=False,
+        adjoint=diffrax.ForwardMode(),
+    )
+
+
+def _transition(c: _Carry, sol, block, base, motion, opts) -> _Carry:
+    """Apply what ended the segment: uplift, apex, impact map, overturn, ..."""
+    active = ~c.done & (c.segments < opts.max_segments)
+    t = sol.ts[-1]
+    theta, theta_dot, base_state = jax.tree_util.tree_map(lambda x: x[-1], sol.ys)
+    event = sol.result == diffrax.RESULTS.event_occurred
+    reached_end = sol.result == diffrax.RESULTS.successful
+    failed = active & ~(event | reached_end)
+    mask = [m & event for m in sol.event_mask]
+    hit_a, hit_b = mask[0], mask[1]
+    hit_base = mask[2] if len(mask) > 2 else jnp.asarray(False)
+    phase, sign = c.phase, c.sign
+
+    uplift = (phase == Phase.TRANSLATION) & (hit_a | hit_b)
+    overturn = (phase == Phase.RISING) & hit_a
+    apex = (phase == Phase.RISING) & hit_b
+    hit_ground = (phase == Phase.FALLING) & hit_a
+    reversal = (phase == Phase.FALLING) & hit_b
+
+    # Impact map with the rest rule.
+    e, _ = restitution(block, base)
+    rise = (e * theta_dot) ** 2 / (2.0 * block.p**2 * jnp.sin(block.alpha))
+    rest = (e <= 0) | (rise < opts.rest_tolerance * block.alpha)
+    post_theta_dot, post_base = impact(block, base, theta_dot, base_state, rest)
+    theta_dot = jnp.where(hit_ground, post_theta_dot, theta_dot)
+    if base_state is not None:
+        base_state = jnp.where(hit_ground, post_base, base_state)
+    theta = jnp.where(hit_ground | uplift, 0.0, theta)
+
+    new_phase = jnp.select(
+        [uplift, apex, hit_ground & ~rest, hit_ground & rest, reversal],
+        [Phase.RISING, Phase.FALLING, Phase.RISING, Phase.TRANSLATION, Phase.RISING],
+        phase,
+    )
+    new_sign = jnp.where(uplift, jnp.where(hit_a, 1.0, -1.0), sign)
+    new_sign = jnp.where(hit_ground & ~rest, -sign, new_sign)
+    y = (theta, theta_dot, base_state)
+    again, again_sign = _uplift_now(t, y, new_phase, block, base, motion)
+    again = again & hit_ground & rest
+    new_phase = jnp.where(again, Phase.RISING, new_phase)
+    new_sign = jnp.where(again, again_sign, new_sign)
+    started = uplift | again
+
+    max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
+    max_theta = jnp.where(overturn, 0.5 * jnp.pi, max_theta)
+    max_u = c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
+    status = jnp.where(
+        failed,
+        jnp.where(
+            sol.result == diffrax.RESULTS.max_steps_reached,
+            Status.MAX_STEPS,
+            Status.SOLVER_FAILED,
+        ),
+        c.status,
+    )
+    kind = jnp.select(
+        [failed, uplift, apex, hit_ground & ~rest, hit_ground & rest, overturn, reversal,
+         hit_base],
+        [EventKind.FAILURE, EventKind.UPLIFT, EventKind.APEX, EventKind.IMPACT,
+         EventKind.REST, EventKind.OVERTURN, EventKind.REVERSAL, EventKind.BASE_PEAK],
+        EventKind.END,
+    )
+    new = _Carry(
+        t=t,
+        y=y,
+        phase=new_phase,
+        sign=new_sign,
+        max_theta=max_theta,
+        max_u=max_u,
+        impacts=c.impacts + hit_ground.astype(c.impacts.dtype),
+        uplift_time=jnp.where(jnp.isnan(c.uplift_time) & started, t, c.uplift_time),
+        rocked=c.rocked | started,
+        overturned=c.overturned | overturn,
+        status=status,
+        segments=c.segments + 1,
+        steps=c.steps + sol.stats["num_steps"],
+        done=overturn | failed | (reached_end & ~event),
+        kind=kind,
+    )
+    # A frozen lane keeps its carry.
+    return jax.tree_util.tree_map(
+        lambda n, o: jnp.where(active, n, o), new, c
+    )
+
+
+def _response(c: _Carry, block, opts) -> Response:
+    status = jnp.where(c.done, c.status, Status.MAX_SEGMENTS)
+    status = jnp.where(c.status != Status.SUCCESS, c.status, status)
+    outcome = jnp.where(
+        c.overturned,
+        Outcome.OVERTURNED,
+        jnp.where(c.rocked, Outcome.ROCKING, Outcome.NO_ROCKING),
+    )
+    return Response(
+        outcome=outcome,
+        max_rotation=c.max_theta / block.alpha,
+        max_base_displacement=c.max_u,
+        impacts=c.impacts,
+        uplift_time=c.uplift_time,
+        status=status,
+        steps=c.steps,
+        segments=c.segments,
+    )
+
+
+def run(block, base, motion, duration, opts: SolverOptions) -> Response:
+    """The whole analysis as one traceable function (for `jit`, `vmap`, `jacfwd`)."""
+
+    def cond(c):
+        return ~c.done & (c.segments < opts.max_segments)
+
+    def body(c):
+        sol = _solve_segment(c, block, base, motion, duration, opts)
+        return _transition(c, sol, block, base, motion, opts)
+
+    carry = jax.lax.while_loop(cond, body, _initial_carry(block, base, motion))
+    return _response(carry, block, opts)
+
+
+_run_jit = eqx.filter_jit(run)
+
+
+@eqx.filter_jit
+def _segment_dense(c, block, base, motion, duration, opts, grid):
+    sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
+    new = _transition(c, sol, block, base, motion, opts)
+    inside = (grid > c.t) & (grid < new.t)
+    ts = jnp.clip(grid, c.t, new.t)
+    ys = jax.vmap(sol.evaluate)(ts)
+    return new, inside, ys
+
+
+def _history(block, base, motion, duration, opts, samples=2001) -> tuple:
+    """Python-level loop over the same segments, recording dense output."""
+    grid = jnp.linspace(0.0, duration, samples)
+    c = _initial_carry(block, base, motion)
+    rows = []  # (t, theta, theta_dot, base state, regime)
+    times, kinds = [], []
+
+    def regime(carry):
+        return 0.0 if int(carry.phase) == Phase.TRANSLATION else float(carry.sign)
+
+    def point(t, y, reg):
+        rows.append((float(t), float(y[0]), float(y[1]),
+                     None if y[2] is None else np.asarray(y[2]), reg))
+
+    point(c.t, c.y, regime(c))
+    if bool(c.rocked):
+        times.append(0.0)
+        kinds.append(EventKind.UPLIFT.name.lower())
+    while not bool(c.done) and int(c.segments) < opts.max_segments:
+        new, inside, ys = _segment_dense(c, block, base, motion, duration, opts, grid)
+        reg = regime(c)
+        inside = np.asarray(inside)
+        for k in np.flatnonzero(inside):
+            y = jax.tree_util.tree_map(lambda x: x[k], ys)
+            point(grid[k], y, reg)
+        # The state just before the transition, then just after it.
+        pre = jax.tree_util.tree_map(lambda x: x[-1], ys)  # evaluated at new.t
+        point(new.t, pre, reg)
+        point(new.t, new.y, regime(new))
+        kind = EventKind(int(new.kind))
+        if kind != EventKind.END:
+            times.append(float(new.t))
+            kinds.append(kind.name.lower())
+        c = new
+    return c, rows, np.asarray(times), tuple(kinds)
+
+
+def simulate(
+    block: Block,
+    base: AbstractIsolator,
+    motion: AbstractGroundMotion,
+    *,
+    duration: float | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    history: bool = False,
+    max_steps: int = 16384,
+    max_segments: int = 2000,
+    rest_tolerance: float = 1e-6,
+) -> Response:
+    """Simulate one block on a base under a ground motion (SI units, float64).
+
+    `duration` (s) defaults to the end of the excitation plus 5 s. `rtol`, `atol`:
+    integrator tolerances; events are located to about 1e-12 s on the dense
+    output. `history=True` adds the time histories (a Python loop of compiled
+    segments). Physical parameters and `duration` are traced: new values do not
+    recompile. Works under `jax.jit`, `jax.vmap` and `jax.jacfwd` (with
+    `history=False`); check `response.status` (or `response.ok`).
+    """
+    _check_types(block, base, motion)
+    if duration is None:
+        duration = motion.end_time + 5.0
+    positive("duration", duration)
+    duration = as_float(duration)
+    opts = SolverOptions(rtol, atol, max_steps, max_segments, rest_tolerance)
+    positive("rtol", rtol)
+    positive("atol", atol)
+    if not history:
+        return _run_jit(block, base, motion, duration, opts)
+    c, rows, times, kinds = _history(block, base, motion, duration, opts)
+    response = _response(c, block, opts)
+    n = len(rows)
+    base_states = np.zeros((n, 3))
+    for i, r in enumerate(rows):
+        if r[3] is not None:
+            base_states[i, : r[3].shape[0]] = r[3]
+    t = np.array([r[0] for r in rows])
+    hist = History(
+        t=t,
+        theta=np.array([r[1] for r in rows]),
+        theta_dot=np.array([r[2] for r in rows]),
+        u=base_states[:, 0],
+        u_dot=base_states[:, 1],
+        z=base_states[:, 2],
+        regime=np.array([r[4] for r in rows]),
+        ground_acceleration=np.asarray(jax.vmap(motion.acceleration)(jnp.asarray(t))),
+        event_times=times,
+        event_kinds=kinds,
+    )
+    return eqx.tree_at(lambda r: r.history, response, hist, is_leaf=lambda x: x is None)
+
+
+def _check_types(block, base, motion):
+    if not isinstance(block, Block):
+        raise TypeError(f"`block` must be a jaxrock.Block, got {type(block).__name__}")
+    if not isinstance(base, AbstractIsolator):
+        raise TypeError(
+            "`base` must be FixedBase, LinearIsolator or FrictionPendulum, got "
+            f"{type(base).__name__}"
+        )
+    if not isinstance(motion, AbstractGroundMotion):
+        raise TypeError(
+            f"`motion` must be an MPPulse or a Record, got {type(motion).__name__}"
+        )

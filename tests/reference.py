@@ -1,0 +1,193 @@
+"""An independent SciPy reference for one analysis (NumPy only, no jaxrock code).
+
+Written from PHYSICS.md with explicit masses (m = 1, m_b = m / mbar) and
+`numpy.linalg.solve` on the 2x2 mass matrix, so that an algebra slip in
+jaxrock's reduced (per unit mass) equations would show. `solve_ivp` with DOP853
+at rtol 1e-10 / atol 1e-12, terminal events and a restart loop; peaks of |u| as
+non-terminal events at u' = 0.
+"""
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+G = 9.81
+
+
+def mp_pulse(amplitude, frequency, gamma, phase_deg, t0=None):
+    """x_g''(t) of the Mavroeidis-Papageorgiou pulse, and its end time."""
+    if t0 is None:
+        t0 = gamma / (2 * frequency)
+    nu = math.radians(phase_deg)
+    half = gamma / (2 * frequency)
+
+    def acc(t):
+        tau = t - t0
+        if abs(tau) > half:
+            return 0.0
+        w = 2 * math.pi * frequency
+        return -(amplitude * math.pi * frequency / gamma) * (
+            math.sin(w * tau / gamma) * math.cos(w * tau + nu)
+            + gamma * math.sin(w * tau + nu) * (1 + math.cos(w * tau / gamma))
+        )
+
+    return acc, t0 + half, 1 / (32 * frequency)
+
+
+def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e-6,
+             rtol=1e-10, atol=1e-12):
+    """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta).
+
+    Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
+    impact_log) with impact_log entries (theta_dot-, theta_dot+, u_dot-, u_dot+).
+    """
+    alpha = math.atan(1 / slenderness)
+    b, h = size * math.sin(alpha), size * math.cos(alpha)
+    m = 1.0
+    kind = base[0]
+    fixed = kind == "fixed"
+    mb = math.inf if fixed else m / base[-1] if kind == "linear" else m / base[3]
+    M = m + (0 if fixed else mb)
+    inertia = m * size**2 / 3
+    J = m * size**2 + inertia
+    p2 = 3 * G / (4 * size)
+
+    def isolator_force(x):
+        u, ud = x[2], x[3]
+        if kind == "linear":
+            T, xi = base[1], base[2]
+            w = 2 * math.pi / T
+            return M * w * w * u + 2 * xi * M * w * ud
+        mu, R = base[1], base[2]
+        return M * G / R * u + mu * M * G * x[4]
+
+    def bouc_wen(x):
+        Y, A, gam, bet, eta = base[4:]
+        ud, z = x[3], x[4]
+        return (A * ud - gam * abs(ud) * z * abs(z) ** (eta - 1)
+                - bet * ud * abs(z) ** eta) / Y
+
+    def rhs(t, x, s):
+        ag = acc(t)
+        th, thd = x[0], x[1]
+        if fixed:
+            if s == 0:
+                return [0.0, 0.0]
+            return [thd, -p2 * (math.sin(s * alpha - th)
+                                + ag / G * math.cos(s * alpha - th))]
+        F = isolator_force(x)
+        if s == 0:
+            udd = -F / M - ag
+            out = [0.0, 0.0, x[3], udd]
+        else:
+            c1 = h * math.cos(th) + s * b * math.sin(th)
+            s1 = s * b * math.cos(th) - h * math.sin(th)
+            mass = np.array([[M, m * c1], [m * c1, J]])
+            force = np.array([-M * ag - m * s1 * thd**2 - F, -m * c1 * ag - m * G * s1])
+            udd, thdd = np.linalg.solve(mass, force)
+            out = [thd, thdd, x[3], udd]
+        if kind == "fps":
+            out.append(bouc_wen(x))
+        return out
+
+    def abs_base_acc(t, x):
+        return acc(t) if fixed else -isolator_force(x) / M
+
+    n = 2 if fixed else (4 if kind == "linear" else 5)
+    x = np.zeros(n)
+    t = 0.0
+    phase, s = "T", 1
+    rocked = overturned = False
+    uplift_time = math.nan
+    max_th = max_u = 0.0
+    impacts = 0
+    log = []
+    thr = G * b / h
+    if fixed:
+        e = 1 - 1.5 * math.sin(alpha) ** 2
+    else:
+        den = 4 * mb * h * h + 4 * mb * b * b + m * h * h + 4 * m * b * b
+        num = 4 * mb * h * h - 2 * mb * b * b + m * h * h - 2 * m * b * b
+        e = num / den
+
+    def uplift_now(t, x):
+        a = abs_base_acc(t, x)
+        if a <= -thr:
+            return 1
+        if a >= thr:
+            return -1
+        return 0
+
+    s0 = uplift_now(t, x)
+    if s0:
+        phase, s, rocked, uplift_time = "R", s0, True, 0.0
+    for _ in range(20000):
+        if t >= t_end:
+            break
+        if phase == "T":
+            ev1 = lambda t, x, s: abs_base_acc(t, x) + thr  # noqa: E731
+            ev2 = lambda t, x, s: thr - abs_base_acc(t, x)  # noqa: E731
+        elif phase == "R":
+            ev1 = lambda t, x, s: math.pi / 2 - s * x[0]  # noqa: E731
+            ev2 = lambda t, x, s: s * x[1]  # noqa: E731
+        else:
+            ev1 = lambda t, x, s: s * x[0]  # noqa: E731
+            ev2 = lambda t, x, s: -s * x[1]  # noqa: E731
+        for ev in (ev1, ev2):
+            ev.terminal, ev.direction = True, -1
+        events = [ev1, ev2]
+        if not fixed:
+            peak = lambda t, x, s: x[3]  # noqa: E731
+            peak.terminal, peak.direction = False, 0
+            events.append(peak)
+        sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=rtol, atol=atol,
+                        events=events, args=(0 if phase == "T" else s,),
+                        max_step=max_step)
+        if not fixed and len(sol.y_events[2]):
+            max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
+        hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]
+        if hit[0] and hit[1]:
+            hit[int(sol.t_events[0][0] > sol.t_events[1][0])] = False
+        t, x = sol.t[-1], sol.y[:, -1].copy()
+        if not fixed:
+            max_u = max(max_u, abs(x[2]))
+        max_th = max(max_th, abs(x[0]))
+        if not (hit[0] or hit[1]):
+            break
+        if phase == "T":
+            phase, s = "R", 1 if hit[0] else -1
+            rocked = True
+            uplift_time = t if math.isnan(uplift_time) else uplift_time
+        elif phase == "R" and hit[0]:
+            overturned = True
+            max_th = math.pi / 2
+            break
+        elif phase == "R":
+            phase = "F"
+        elif hit[1]:
+            phase = "R"
+        else:
+            impacts += 1
+            thd = x[1]
+            ud = 0.0 if fixed else x[3]
+            rise = (e * thd) ** 2 / (2 * p2 * math.sin(alpha))
+            if e <= 0 or rise < rest_tolerance * alpha:
+                x[0] = x[1] = 0.0
+                if not fixed:
+                    x[3] = ud + m * h * thd / M
+                phase = "T"
+                s0 = uplift_now(t, x)
+                if s0:
+                    phase, s = "R", s0
+            else:
+                x[0], x[1] = 0.0, e * thd
+                if not fixed:
+                    x[3] = ud + 6 * m * h * b * b * thd / den
+                phase, s = "R", -s
+            log.append((thd, x[1], ud, 0.0 if fixed else x[3]))
+    else:
+        raise RuntimeError("reference: too many segments")
+    outcome = 2 if overturned else (1 if rocked else 0)
+    return dict(outcome=outcome, max_rotation=max_th / alpha, max_base_displacement=max_u,
+                impacts=impacts, uplift_time=uplift_time, impact_log=log)
