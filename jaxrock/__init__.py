@@ -24,6 +24,7 @@ from ._isolators import (  # noqa: E402
     FrictionPendulum as FrictionPendulum,
     LinearIsolator as LinearIsolator,
 )
+from ._maps import BehaviorMap as BehaviorMap, behavior_map as behavior_map  # noqa: E402
 from ._simulate import (  # noqa: E402
     EventKind as EventKind,
     History as History,

@@ -96,6 +96,7 @@ class History(eqx.Module):
     ground_acceleration: np.ndarray
     event_times: np.ndarray
     event_kinds: tuple[str, ...]
+    alpha: float  # the block's alpha (rad), to plot theta / alpha
 
 
 class Response(eqx.Module):
@@ -448,12 +449,13 @@ def simulate(
         ground_acceleration=np.asarray(jax.vmap(motion.acceleration)(jnp.asarray(t))),
         event_times=times,
         event_kinds=kinds,
+        alpha=float(block.alpha),
     )
     return eqx.tree_at(lambda r: r.history, response, hist, is_leaf=lambda x: x is None)
 
 
 def _check_types(block, base, motion):
-    if not isinstance(block, Block):
+    if block is not None and not isinstance(block, Block):
         raise TypeError(f"`block` must be a jaxrock.Block, got {type(block).__name__}")
     if not isinstance(base, AbstractIsolator):
         raise TypeError(

@@ -1,0 +1,123 @@
+"""Command line: `jaxrock map` (behavior maps) and `jaxrock simulate` (one block)."""
+
+import argparse
+import os
+import sys
+
+
+def _range(text: str):
+    """START:STOP:N -> N values from START to STOP inclusive."""
+    import numpy as np
+
+    try:
+        start, stop, n = text.split(":")
+        start, stop, n = float(start), float(stop), int(n)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected START:STOP:N (e.g. 1.0:7.0:61), got {text!r}"
+        ) from None
+    if n < 1 or not (start > 0 and stop >= start):
+        raise argparse.ArgumentTypeError(
+            f"need 0 < START <= STOP and N >= 1, got {text!r}"
+        )
+    return np.linspace(start, stop, n)
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog="jaxrock", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(q):
+        g = q.add_mutually_exclusive_group()
+        g.add_argument("--pulse", default="San Fernando PCD/SN",
+                       help="a Table 3.1 pulse name (default: %(default)s)")
+        g.add_argument("--record", help="a PEER NGA .AT2 file instead of a pulse")
+        q.add_argument("--scale", type=float, default=1.0,
+                       help="amplitude factor of the motion (default 1)")
+        q.add_argument("--base", choices=["fixed", "linear", "fps"], default="linear",
+                       help="base to analyse (default linear; `map` also draws the "
+                       "fixed base beside it unless --no-compare)")
+        q.add_argument("--period", type=float, default=2.0, help="T_s (s)")
+        q.add_argument("--damping", type=float, default=0.35, help="xi")
+        q.add_argument("--friction", type=float, default=0.11, help="mu (fps)")
+        q.add_argument("--radius", type=float, default=2.24, help="R (m) (fps)")
+        q.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
+        q.add_argument("--out", default=None, help="output PNG")
+
+    m = sub.add_parser("map", help="behavior map over slenderness and size")
+    common(m)
+    m.add_argument("--slenderness", type=_range, default="1.0:7.0:61",
+                   help="START:STOP:N (default 1.0:7.0:61)")
+    m.add_argument("--size", type=_range, default="0.1:4.0:40",
+                   help="START:STOP:N in m (default 0.1:4.0:40)")
+    m.add_argument("--no-compare", action="store_true",
+                   help="only the chosen base, not the fixed base beside it")
+    m.add_argument("--chunk-size", type=int, default=64)
+    s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
+    common(s)
+    s.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
+    s.add_argument("--size", type=float, default=1.0, help="r (m)")
+    return p
+
+
+def _inputs(a):
+    import jaxrock as jr
+
+    if a.record:
+        if not os.path.isfile(a.record):
+            raise ValueError(f"no such file: {a.record}")
+        rec = jr.io.read_at2(a.record)
+        motion = jr.Record(rec.samples * a.scale, rec.dt)
+        name = os.path.basename(a.record)
+    else:
+        motion = jr.near_fault_pulse(a.pulse, scale=a.scale)
+        name = a.pulse
+    if a.base == "fixed":
+        base = jr.FixedBase()
+    elif a.base == "linear":
+        base = jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
+    else:
+        base = jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
+    return motion, base, name
+
+
+def main(argv=None) -> int:
+    a = _parser().parse_args(argv)
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import jaxrock as jr
+        from jaxrock import plot
+
+        motion, base, name = _inputs(a)
+        if a.command == "simulate":
+            r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
+            print(r.summary())
+            out = a.out or "response.png"
+            plot.response(r).savefig(out, dpi=120)
+            print(f"wrote {out}")
+            return 0
+        bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
+        maps = []
+        for b in bases:
+            bm = jr.behavior_map(a.slenderness, a.size, b, motion,
+                                 chunk_size=a.chunk_size)
+            print(bm.summary().replace(bm.motion, name))
+            maps.append(bm)
+        out = a.out or "behavior_map.png"
+        stem = os.path.splitext(out)[0]
+        for b, bm in zip(bases, maps):
+            kind = type(b).__name__
+            bm.save(f"{stem}_{kind}.npz")
+        titles = [f"{name}\n{bm.base}" for bm in maps]
+        plot.compare_maps(maps, titles).savefig(out, dpi=120)
+        print(f"wrote {out} and {stem}_*.npz")
+        return 0
+    except (ValueError, TypeError, OSError) as err:
+        print(f"jaxrock: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

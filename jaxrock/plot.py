@@ -1,0 +1,79 @@
+"""Plots (matplotlib is imported here only, never by `import jaxrock`)."""
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ._maps import BehaviorMap
+from ._simulate import Outcome, Response
+
+_COLOURS = {Outcome.NO_ROCKING: ("tab:blue", "No rocking"),
+            Outcome.ROCKING: ("tab:green", "Rocking"),
+            Outcome.OVERTURNED: ("tab:red", "Overturning")}
+_MARKERS = {"uplift": ("^", "k"), "impact": ("v", "tab:orange"),
+            "rest": ("s", "tab:gray"), "overturn": ("x", "tab:red")}
+
+
+def response(resp: Response, axes=None):
+    """Ground acceleration, base displacement and theta/alpha against time.
+
+    Needs `simulate(..., history=True)`. Uplifts, impacts, rests and the
+    overturn are marked. Returns the figure.
+    """
+    h = resp.history
+    if h is None:
+        raise ValueError("`response` needs a history: simulate(..., history=True)")
+    if axes is None:
+        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
+    else:
+        fig = axes[0].figure
+    axes[0].plot(h.t, h.ground_acceleration / 9.81, "k", lw=1)
+    axes[0].set_ylabel("ground acc. (g)")
+    axes[1].plot(h.t, h.u * 100, "tab:purple", lw=1)
+    axes[1].set_ylabel("base disp. u (cm)")
+    axes[2].plot(h.t, h.theta / h.alpha, "tab:green", lw=1)
+    axes[2].set_ylabel("theta / alpha")
+    for kind, (marker, colour) in _MARKERS.items():
+        ts = [t for t, k in zip(h.event_times, h.event_kinds) if k == kind]
+        if ts:
+            axes[2].plot(ts, np.zeros(len(ts)), marker, color=colour, ls="none",
+                         label=kind)
+    if any(k in _MARKERS for k in h.event_kinds):
+        axes[2].legend(loc="best", fontsize=8)
+    axes[2].set_xlabel("t (s)")
+    axes[0].set_title(resp.summary() if np.ndim(resp.outcome) == 0 else "", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
+    """The paper's behavior map: a dot per analysis over (lambda, r).
+
+    Blue no rocking, green rocking, red overturning; cells whose analysis did not
+    converge are drawn as black crosses. Returns the axes.
+    """
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 5))
+    lam, r = np.meshgrid(bmap.slenderness, bmap.size, indexing="ij")
+    for code, (colour, label) in _COLOURS.items():
+        sel = (bmap.outcome == code) & (bmap.status == 0)
+        ax.scatter(lam[sel], r[sel], s=6, c=colour, label=label)
+    bad = bmap.status != 0
+    if np.any(bad):
+        ax.scatter(lam[bad], r[bad], s=12, c="k", marker="x", label="not converged")
+    ax.set_xlabel("slenderness lambda = h/b")
+    ax.set_ylabel("size r (m)")
+    ax.set_title(title or f"{bmap.motion}\n{bmap.base}", fontsize=8)
+    ax.legend(loc="upper right", fontsize=7, markerscale=2)
+    return ax
+
+
+def compare_maps(maps, titles=None):
+    """Maps side by side with shared axes (fixed vs isolated, ...). Returns the figure."""
+    maps = list(maps)
+    titles = titles or [None] * len(maps)
+    fig, axes = plt.subplots(1, len(maps), figsize=(5.5 * len(maps), 5),
+                             sharex=True, sharey=True, squeeze=False)
+    for ax, m, t in zip(axes[0], maps, titles):
+        behavior_map(m, ax=ax, title=t)
+    fig.tight_layout()
+    return fig
