@@ -1,0 +1,117 @@
+"""Compilation reuse, behavior maps, save/load and the CLI."""
+
+import jax
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock import _maps, _simulate
+from jaxrock.cli import main
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
+SIZE = np.array([0.3, 1.0, 2.5])
+
+
+def test_new_parameters_do_not_recompile():
+    run = _simulate._run_jit._cached
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    jr.simulate(jr.Block(3.0, 1.0), base, PULSE)
+    before = run._cache_size()
+    jr.simulate(jr.Block(4.5, 0.7), jr.LinearIsolator(1.5, 0.2, 0.8),
+                jr.near_fault_pulse("Tabas TAB/SP"), duration=20.0)
+    jr.simulate(jr.Block(2.0, 3.0), base, jr.MPPulse(0.5, 1.0, 2.0, 45.0, t0=1.0))
+    assert run._cache_size() == before
+
+
+@pytest.fixture(scope="module")
+def linear_map():
+    return jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE,
+                           chunk_size=4, progress=False)
+
+
+def test_map_equals_simulate_cell_by_cell(linear_map):
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    assert linear_map.outcome.shape == (5, 3)
+    for i, lam in enumerate(LAM):
+        for j, r in enumerate(SIZE):
+            one = jr.simulate(jr.Block(lam, r), base, PULSE)
+            assert linear_map.outcome[i, j] == int(one.outcome)
+            assert linear_map.impacts[i, j] == int(one.impacts)
+            np.testing.assert_allclose(linear_map.max_rotation[i, j],
+                                       float(one.max_rotation), rtol=1e-12)
+    # The grid holds every outcome, so the comparison means something.
+    assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
+
+
+def test_chunking_does_not_change_results(linear_map):
+    whole = jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE,
+                            chunk_size=None)
+    # Integer results are identical; floats to the last bits (XLA may vectorise a
+    # batch of 15 lanes differently from batches of 4).
+    for k in ("outcome", "impacts", "status"):
+        np.testing.assert_array_equal(getattr(whole, k), getattr(linear_map, k))
+    for k in ("max_rotation", "max_base_displacement", "uplift_time"):
+        np.testing.assert_allclose(getattr(whole, k), getattr(linear_map, k),
+                                   rtol=1e-13, atol=1e-15)
+
+
+def test_new_map_parameters_reuse_compile(linear_map):
+    before = _maps._map_chunk._cached._cache_size()
+    jr.behavior_map(LAM + 0.05, SIZE * 1.1, jr.LinearIsolator(1.5, 0.1, 0.3),
+                    jr.near_fault_pulse("Northridge JFA/SN"), chunk_size=4)
+    assert _maps._map_chunk._cached._cache_size() == before
+
+
+def test_fixed_map_no_rocking_cells_obey_threshold():
+    bm = jr.behavior_map(np.linspace(1.2, 4.0, 8), [0.5, 2.0], jr.FixedBase(), PULSE,
+                         chunk_size=8)
+    ts = np.linspace(0.0, float(PULSE.end_time), 100001)
+    pga = float(np.max(np.abs(np.asarray(jax.vmap(PULSE.acceleration)(ts)))))
+    lam = bm.slenderness[:, None] * np.ones_like(bm.size)[None, :]
+    calm = bm.outcome == jr.Outcome.NO_ROCKING
+    assert np.all(1.0 / lam[calm] >= pga / 9.81 * (1 - 1e-6))
+    assert np.all(1.0 / lam[~calm] <= pga / 9.81 * (1 + 1e-6))
+    assert calm.any() and (~calm).any()
+
+
+def test_save_load_roundtrip(linear_map, tmp_path):
+    linear_map.save(tmp_path / "m.npz")
+    back = jr.BehaviorMap.load(tmp_path / "m.npz")
+    for k in ("slenderness", "size", "outcome", "max_rotation", "uplift_time"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(linear_map, k))
+    assert back.base == linear_map.base and back.motion == linear_map.motion
+    assert "rocking" in linear_map.summary()
+
+
+def test_cli_map_and_simulate(tmp_path, capsys):
+    out = tmp_path / "bm.png"
+    assert main(["map", "--slenderness", "2:6:3", "--size", "0.5:2:2",
+                 "--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+    assert (tmp_path / "bm_FixedBase.npz").exists()
+    assert (tmp_path / "bm_LinearIsolator.npz").exists()
+    text = capsys.readouterr().out
+    assert "6 analyses" in text
+    png = tmp_path / "one.png"
+    assert main(["simulate", "--slenderness", "4", "--size", "1", "--base", "fps",
+                 "--out", str(png)]) == 0
+    assert png.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["map", "--pulse", "Atlantis X/Y"], "unknown pulse"),
+    (["map", "--record", "/nonexistent.AT2"], "no such file"),
+    (["simulate", "--size", "-1"], "`size` must be"),
+])
+def test_cli_errors_are_one_line(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_cli_bad_range_exits_nonzero(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["map", "--slenderness", "7:1:3"])
+    assert exc.value.code != 0
+    assert "START <= STOP" in capsys.readouterr().err
