@@ -12,7 +12,16 @@ from ._block import Block
 from ._ground import AbstractGroundMotion, MPPulse, Record
 from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum, LinearIsolator
 from ._misc import as_float, positive
-from ._simulate import Outcome, SolverOptions, Status, _check_types, run
+from ._simulate import (
+    Outcome,
+    SolverOptions,
+    Status,
+    _check_types,
+    _initial_carry,
+    _response,
+    _solve_segment,
+    _transition,
+)
 
 _FIELDS = ("outcome", "max_rotation", "max_base_displacement", "impacts",
            "uplift_time", "status", "steps", "segments")
@@ -20,32 +29,64 @@ _FIELDS = ("outcome", "max_rotation", "max_base_displacement", "impacts",
 
 @eqx.filter_jit
 def _map_chunk(slenderness, size, base, motion, duration, opts):
-    """A chunk of lanes (1-D arrays of equal length): one compile per base type."""
-    return jax.vmap(lambda lam, r: run(Block(lam, r), base, motion, duration, opts))(
-        slenderness, size
+    """Analyse a chunk of lanes; one compile per base type, motion type and options.
+
+    `slenderness`, `size` and every leaf of `base` (and of `motion`, unless it is
+    a `Record`) carry one leading lane axis. This is the batched while loop that
+    `vmap(run)` would make, written out so that it can also count the lane-steps
+    it executes: each iteration advances every lane by one segment and costs the
+    slowest lane's steps times the number of lanes.
+    """
+    motion_axis = None if isinstance(motion, Record) else 0
+    lanes = (Block(slenderness, size), base, motion)
+    axes = (0, 0, motion_axis)
+    init = jax.vmap(_initial_carry, in_axes=axes)(*lanes)
+
+    def active(c):
+        return ~c.done & (c.segments < opts.max_segments)
+
+    def one(c, block, base, motion):
+        sol = _solve_segment(c, block, base, motion, duration, opts)
+        return _transition(c, sol, block, base, motion, duration, opts), sol.stats["num_steps"]
+
+    def body(state):
+        c, executed = state
+        c, steps = jax.vmap(one, in_axes=(0,) + axes)(c, *lanes)
+        return c, executed + jnp.max(steps) * steps.shape[0]
+
+    carry, executed = jax.lax.while_loop(
+        lambda state: jnp.any(active(state[0])), body, (init, jnp.asarray(0))
     )
+    response = jax.vmap(lambda c, b: _response(c, b, opts))(carry, lanes[0])
+    return response, executed
+
+
+def _fmt(x) -> str:
+    x = np.asarray(x)
+    if x.size == 1:
+        return f"{float(x):g}"
+    return f"{x.min():g}..{x.max():g} ({x.size} values)"
 
 
 def describe_base(base: AbstractIsolator) -> str:
     if isinstance(base, FixedBase):
         return "fixed base"
     if isinstance(base, LinearIsolator):
-        return (f"linear isolator (T_s = {float(base.period):g} s, "
-                f"xi = {float(base.damping):g}, mass ratio {float(base.mass_ratio):g})")
+        return (f"linear isolator (T_s = {_fmt(base.period)} s, "
+                f"xi = {_fmt(base.damping)}, mass ratio {_fmt(base.mass_ratio)})")
     if isinstance(base, FrictionPendulum):
-        return (f"friction pendulum (mu = {float(base.friction):g}, "
-                f"R = {float(base.radius):g} m, mass ratio {float(base.mass_ratio):g})")
+        return (f"friction pendulum (mu = {_fmt(base.friction)}, "
+                f"R = {_fmt(base.radius)} m, mass ratio {_fmt(base.mass_ratio)})")
     return type(base).__name__
 
 
 def describe_motion(motion: AbstractGroundMotion) -> str:
     if isinstance(motion, MPPulse):
-        return (f"MP pulse (A = {float(motion.amplitude):g} m/s, "
-                f"f_p = {float(motion.frequency):g} Hz, gamma = {float(motion.gamma):g}, "
-                f"nu = {float(motion.phase):g} deg)")
+        return (f"MP pulse (A = {_fmt(motion.amplitude)} m/s, "
+                f"f_p = {_fmt(motion.frequency)} Hz, gamma = {_fmt(motion.gamma)}, "
+                f"nu = {_fmt(motion.phase)} deg)")
     if isinstance(motion, Record):
-        return (f"record ({motion.samples.shape[0]} samples, "
-                f"dt = {float(motion.dt):g} s)")
+        return f"record ({motion.samples.shape[0]} samples, dt = {_fmt(motion.dt)} s)"
     return type(motion).__name__
 
 
@@ -54,7 +95,9 @@ class BehaviorMap(eqx.Module):
 
     `outcome` holds `Outcome` codes and `status` `Status` codes per cell; the other
     fields are those of `Response`. `base` and `motion` describe what produced it;
-    `seconds` is the wall time of the computation.
+    `seconds` is the wall time of the computation (compilation included on a
+    first call); `lane_efficiency` the share of the executed lane-steps that
+    advanced an unfinished analysis (vmapped lanes wait for the slowest one).
     """
 
     slenderness: np.ndarray
@@ -70,6 +113,7 @@ class BehaviorMap(eqx.Module):
     base: str
     motion: str
     seconds: float
+    lane_efficiency: float = float("nan")
 
     def counts(self) -> dict[str, int]:
         """Cells per outcome, plus cells whose analysis did not converge."""
@@ -89,7 +133,8 @@ class BehaviorMap(eqx.Module):
     def save(self, path) -> None:
         """Write the arrays and metadata to an `.npz` file."""
         meta = json.dumps({"base": self.base, "motion": self.motion,
-                           "seconds": self.seconds})
+                           "seconds": self.seconds,
+                           "lane_efficiency": self.lane_efficiency})
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
         np.savez_compressed(path, metadata=np.array(meta), **arrays)
 
@@ -100,6 +145,24 @@ class BehaviorMap(eqx.Module):
             meta = json.loads(str(data["metadata"]))
             arrays = {k: data[k] for k in ("slenderness", "size") + _FIELDS}
         return cls(**arrays, **meta)
+
+
+def _batch_shape(module) -> tuple[int, ...]:
+    leaves = [np.shape(x) for x in jax.tree_util.tree_leaves(module)]
+    try:
+        return np.broadcast_shapes(*leaves) if leaves else ()
+    except ValueError:
+        raise ValueError(
+            f"the parameters of {type(module).__name__} must share one batch shape, "
+            f"got shapes {leaves}"
+        ) from None
+
+
+def _lanes(module, shape, index):
+    """Every leaf broadcast to `shape`, flattened and taken at `index` (1-D)."""
+    return jax.tree_util.tree_map(
+        lambda x: np.broadcast_to(np.asarray(x), shape).reshape(-1)[index], module
+    )
 
 
 def behavior_map(
@@ -115,14 +178,17 @@ def behavior_map(
     progress: bool | None = None,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
-) -> BehaviorMap:
+) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
-    Every cell is the exact analysis of `simulate`. Lanes run `chunk_size` at a
-    time through one compiled, vmapped function (a batched while loop waits for
-    its slowest lane, so small chunks waste less); `None` runs all at once.
-    `progress` shows a tqdm bar (default: when there is more than one chunk).
-    New grids, pulses or isolator parameters of the same shapes reuse the compile.
+    Every cell is the exact analysis of `simulate`. The parameters of `base` and
+    of an `MPPulse` may carry batch axes (an ensemble of isolators or of pulses,
+    e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
+    then has shape base batch + pulse batch + (n_slenderness, n_size).
+    Lanes run `chunk_size` at a time through one compiled, vmapped loop (which
+    waits for its slowest lane, so small chunks waste less); `None` runs all at
+    once. `progress` shows a tqdm bar (default: when there is more than one
+    chunk). New grids, pulses or isolator parameters reuse the compile.
     """
     _check_types(None, base, motion)
     lam = np.atleast_1d(np.asarray(slenderness, dtype=float))
@@ -131,20 +197,30 @@ def behavior_map(
         raise ValueError("`slenderness` and `size` must be 1-D arrays")
     positive("slenderness", lam)
     positive("size", r)
+    if isinstance(motion, Record) and motion.samples.ndim != 1:
+        raise ValueError("a batch of records is not supported: map them one by one")
+    base_shape = _batch_shape(base)
+    motion_shape = () if isinstance(motion, Record) else _batch_shape(motion)
     if duration is None:
-        duration = motion.end_time + 5.0
+        duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
     if chunk_size is not None and chunk_size < 1:
         raise ValueError(f"`chunk_size` must be >= 1 or None, got {chunk_size}")
     opts = SolverOptions(rtol, atol, 16384, max_segments, rest_tolerance)
-    lanes_l, lanes_r = (x.ravel() for x in np.meshgrid(lam, r, indexing="ij"))
-    n = lanes_l.size
+
+    shape = base_shape + motion_shape + (lam.size, r.size)
+    n = int(np.prod(shape))
     chunk = n if chunk_size is None else min(chunk_size, n)
-    pad = (-n) % chunk
-    # Padding repeats the last cell, so every chunk has one shape (one compile).
-    lanes_l = np.concatenate([lanes_l, np.full(pad, lanes_l[-1])])
-    lanes_r = np.concatenate([lanes_r, np.full(pad, lanes_r[-1])])
-    starts = range(0, n + pad, chunk)
+    # Padding repeats the last lane, so every chunk has one shape (one compile).
+    index = np.minimum(np.arange(n + (-n) % chunk), n - 1)
+    ib, im, il, ir = (np.unravel_index(index, (int(np.prod(base_shape)),
+                                               int(np.prod(motion_shape)),
+                                               lam.size, r.size)))
+    lane_lam, lane_r = lam[il], r[ir]
+    lane_base = _lanes(base, base_shape, ib)
+    lane_motion = motion if isinstance(motion, Record) else _lanes(
+        motion, motion_shape, im)
+    starts = range(0, index.size, chunk)
     if progress is None:
         progress = len(starts) > 1
     if progress:
@@ -152,17 +228,24 @@ def behavior_map(
 
         starts = tqdm(starts, desc="behavior map", unit="chunk")
     duration = as_float(duration)
+
+    def part(tree, i):
+        return jax.tree_util.tree_map(lambda x: jnp.asarray(x[i : i + chunk]), tree)
+
     t = time.perf_counter()
-    parts = []
+    parts, executed = [], 0
     for i in starts:
-        out = _map_chunk(jnp.asarray(lanes_l[i : i + chunk]),
-                         jnp.asarray(lanes_r[i : i + chunk]),
-                         base, motion, duration, opts)
+        m = lane_motion if isinstance(motion, Record) else part(lane_motion, i)
+        out, ex = _map_chunk(part(lane_lam, i), part(lane_r, i), part(lane_base, i),
+                             m, duration, opts)
         parts.append(jax.device_get(out))
+        executed += int(ex)
     seconds = time.perf_counter() - t
     fields = {
-        k: np.concatenate([getattr(p, k) for p in parts])[:n].reshape(lam.size, r.size)
+        k: np.concatenate([getattr(p, k) for p in parts])[:n].reshape(shape)
         for k in _FIELDS
     }
+    useful = int(np.concatenate([p.steps for p in parts]).sum())
     return BehaviorMap(slenderness=lam, size=r, **fields, base=describe_base(base),
-                       motion=describe_motion(motion), seconds=seconds)
+                       motion=describe_motion(motion), seconds=seconds,
+                       lane_efficiency=useful / max(executed, 1))

@@ -81,6 +81,7 @@ class SolverOptions:
     max_steps: int = 16384
     max_segments: int = 2000
     rest_tolerance: float = 1e-6
+    solver: diffrax.AbstractSolver = dataclasses.field(default_factory=diffrax.Tsit5)
 
 
 class History(eqx.Module):
@@ -204,19 +205,24 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
         root_finder=BracketedNewton(rtol=1e-14, atol=1e-12),
         direction=False,
     )
+    # A segment stops at the end of the excitation: the step limit that keeps
+    # uplifts from hiding inside a step is needed only while the ground moves.
+    shaking = c.t < motion.end_time
+    t_stop = jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
+    max_step = motion.max_step
     controller = diffrax.PIDController(
         rtol=opts.rtol,
         atol=opts.atol,
-        dtmax=motion.max_step,
+        dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
         step_ts=motion.step_ts,
         jump_ts=motion.jump_ts,
     )
     return diffrax.diffeqsolve(
         diffrax.ODETerm(vector_field),
-        diffrax.Tsit5(),
+        opts.solver,
         t0=c.t,
         # A finished lane makes a zero-length solve (vmap runs every lane's body).
-        t1=jnp.where(active, duration, c.t),
+        t1=jnp.where(active, t_stop, c.t),
         dt0=None,
         y0=c.y,
         args=args,
@@ -229,7 +235,7 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     )
 
 
-def _transition(c: _Carry, sol, block, base, motion, opts) -> _Carry:
+def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     """Apply what ended the segment: uplift, apex, impact map, overturn, ..."""
     active = ~c.done & (c.segments < opts.max_segments)
     t = sol.ts[-1]
@@ -272,6 +278,12 @@ def _transition(c: _Carry, sol, block, base, motion, opts) -> _Carry:
     new_sign = jnp.where(again, again_sign, new_sign)
     started = uplift | again
 
+    # A block at rest on a fixed base after the excitation stays at rest.
+    still = (
+        isinstance(base, FixedBase)
+        & (new_phase == Phase.TRANSLATION)
+        & (t >= motion.end_time)
+    )
     max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
     max_theta = jnp.where(overturn, 0.5 * jnp.pi, max_theta)
     max_u = c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
@@ -305,7 +317,7 @@ def _transition(c: _Carry, sol, block, base, motion, opts) -> _Carry:
         status=status,
         segments=c.segments + 1,
         steps=c.steps + sol.stats["num_steps"],
-        done=overturn | failed | (reached_end & ~event),
+        done=overturn | failed | (reached_end & ~event & (t >= duration)) | still,
         kind=kind,
     )
     # A frozen lane keeps its carry.
@@ -342,7 +354,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
 
     def body(c):
         sol = _solve_segment(c, block, base, motion, duration, opts)
-        return _transition(c, sol, block, base, motion, opts)
+        return _transition(c, sol, block, base, motion, duration, opts)
 
     carry = jax.lax.while_loop(cond, body, _initial_carry(block, base, motion))
     return _response(carry, block, opts)
@@ -354,7 +366,7 @@ _run_jit = eqx.filter_jit(run)
 @eqx.filter_jit
 def _segment_dense(c, block, base, motion, duration, opts, grid):
     sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
-    new = _transition(c, sol, block, base, motion, opts)
+    new = _transition(c, sol, block, base, motion, duration, opts)
     inside = (grid > c.t) & (grid < new.t)
     ts = jnp.clip(grid, c.t, new.t)
     ys = jax.vmap(sol.evaluate)(ts)

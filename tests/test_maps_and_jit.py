@@ -38,8 +38,10 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             one = jr.simulate(jr.Block(lam, r), base, PULSE)
             assert linear_map.outcome[i, j] == int(one.outcome)
             assert linear_map.impacts[i, j] == int(one.impacts)
+            # Batched and single-lane XLA code round differently in the last
+            # bits; rocking amplifies that to about 1e-11.
             np.testing.assert_allclose(linear_map.max_rotation[i, j],
-                                       float(one.max_rotation), rtol=1e-12)
+                                       float(one.max_rotation), rtol=1e-9)
     # The grid holds every outcome, so the comparison means something.
     assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
 
@@ -47,13 +49,14 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
 def test_chunking_does_not_change_results(linear_map):
     whole = jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE,
                             chunk_size=None)
-    # Integer results are identical; floats to the last bits (XLA may vectorise a
-    # batch of 15 lanes differently from batches of 4).
+    # Integer results are identical; floats agree to rounding (XLA vectorises a
+    # batch of 15 lanes differently from batches of 4; rocking amplifies the
+    # last-bit differences to about 1e-11).
     for k in ("outcome", "impacts", "status"):
         np.testing.assert_array_equal(getattr(whole, k), getattr(linear_map, k))
     for k in ("max_rotation", "max_base_displacement", "uplift_time"):
         np.testing.assert_allclose(getattr(whole, k), getattr(linear_map, k),
-                                   rtol=1e-13, atol=1e-15)
+                                   rtol=1e-9, atol=1e-15)
 
 
 def test_new_map_parameters_reuse_compile(linear_map):
