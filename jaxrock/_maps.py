@@ -1,7 +1,9 @@
 """Behavior maps: one analysis per (slenderness, size) cell, vmapped and chunked."""
 
 import json
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import equinox as eqx
 import jax
@@ -174,7 +176,7 @@ def behavior_map(
     duration: float | None = None,
     rtol: float = 1e-8,
     atol: float = 1e-10,
-    chunk_size: int | None = 64,
+    chunk_size: int | None = 16,
     progress: bool | None = None,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
@@ -223,24 +225,47 @@ def behavior_map(
     starts = range(0, index.size, chunk)
     if progress is None:
         progress = len(starts) > 1
-    if progress:
-        from tqdm.auto import tqdm
-
-        starts = tqdm(starts, desc="behavior map", unit="chunk")
     duration = as_float(duration)
+    # Chunks go round-robin to the local devices (GPUs, or several CPU devices
+    # with XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread
+    # per CPU core: XLA releases the GIL, so chunks run at once.
+    devices = jax.local_devices()
+    shared = [jax.device_put((motion, duration), d) for d in devices]
 
-    def part(tree, i):
-        return jax.tree_util.tree_map(lambda x: jnp.asarray(x[i : i + chunk]), tree)
+    def run_chunk(k):
+        i, d = starts[k], k % len(devices)
 
+        def part(tree):
+            return jax.device_put(
+                jax.tree_util.tree_map(lambda x: np.asarray(x[i : i + chunk]), tree),
+                devices[d],
+            )
+
+        d_motion, d_duration = shared[d]
+        m = d_motion if isinstance(motion, Record) else part(lane_motion)
+        out = _map_chunk(part(lane_lam), part(lane_r), part(lane_base), m,
+                         d_duration, opts)
+        return jax.device_get(out)
+
+    workers = max(len(devices), os.cpu_count() or 1)
     t = time.perf_counter()
-    parts, executed = [], 0
-    for i in starts:
-        m = lane_motion if isinstance(motion, Record) else part(lane_motion, i)
-        out, ex = _map_chunk(part(lane_lam, i), part(lane_r, i), part(lane_base, i),
-                             m, duration, opts)
-        parts.append(jax.device_get(out))
-        executed += int(ex)
+    with ThreadPoolExecutor(workers) as pool:
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=len(starts), desc="behavior map", unit="chunk")
+        # The first chunk alone compiles; the others then reuse it.
+        results = [run_chunk(0)]
+        for out in pool.map(run_chunk, range(1, len(starts))):
+            results.append(out)
+            if bar is not None:
+                bar.update(1 if len(results) > 2 else 2)
+        if bar is not None:
+            bar.close()
     seconds = time.perf_counter() - t
+    parts = [out for out, _ in results]
+    executed = sum(int(ex) for _, ex in results)
     fields = {
         k: np.concatenate([getattr(p, k) for p in parts])[:n].reshape(shape)
         for k in _FIELDS

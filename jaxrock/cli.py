@@ -52,7 +52,7 @@ def _parser():
                    help="START:STOP:N in m (default 0.1:4.0:40)")
     m.add_argument("--no-compare", action="store_true",
                    help="only the chosen base, not the fixed base beside it")
-    m.add_argument("--chunk-size", type=int, default=64)
+    m.add_argument("--chunk-size", type=int, default=16)
     s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
     common(s)
     s.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")

@@ -118,3 +118,18 @@ def test_cli_bad_range_exits_nonzero(capsys):
         main(["map", "--slenderness", "7:1:3"])
     assert exc.value.code != 0
     assert "START <= STOP" in capsys.readouterr().err
+
+
+def test_ensembles_add_leading_axes(linear_map):
+    bases = jr.LinearIsolator(period=np.array([1.5, 2.0]), damping=0.35, mass_ratio=0.5)
+    bm = jr.behavior_map(LAM, SIZE, bases, PULSE, chunk_size=4)
+    assert bm.outcome.shape == (2, 5, 3)
+    np.testing.assert_array_equal(bm.outcome[1], linear_map.outcome)
+    np.testing.assert_allclose(bm.max_rotation[1], linear_map.max_rotation, rtol=1e-9)
+    assert not np.array_equal(bm.max_base_displacement[0], bm.max_base_displacement[1])
+    pulses = jr.MPPulse(np.array([0.3, 1.15]), 0.68, 1.6, 180.0)
+    bm = jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), pulses,
+                         chunk_size=4)
+    assert bm.outcome.shape == (2, 5, 3)
+    np.testing.assert_array_equal(bm.outcome[1], linear_map.outcome)
+    assert np.all(bm.outcome[0] <= bm.outcome[1])  # a weaker pulse does no more harm

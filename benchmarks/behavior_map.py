@@ -1,0 +1,101 @@
+"""Time the paper's 2,440-cell behavior map for each base (San Fernando PCD/SN).
+
+Prints a Markdown table and writes benchmarks/results/behavior_map.{json,md}:
+compile time (first call minus the best run), run time (best of --repeats),
+analyses per second, lane efficiency (useful over executed lane-steps), peak
+memory of the process, and the SciPy reference (tests/reference.py, same rtol)
+on a random sample of cells, extrapolated to the whole map.
+
+    python benchmarks/behavior_map.py [--repeats 3] [--sample 40] [--bases fixed,linear,fps]
+"""
+
+import argparse
+import json
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import jaxrock as jr
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+import reference as ref  # noqa: E402
+
+PULSE = "San Fernando PCD/SN"
+BASES = {
+    "fixed": (jr.FixedBase(), ("fixed",)),
+    "linear": (jr.LinearIsolator(2.0, 0.35, 0.5), ("linear", 2.0, 0.35, 0.5)),
+    "fps": (jr.FrictionPendulum(0.11, 2.24, 0.5),
+            ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0)),
+}
+TARGETS = {"fixed": 0.5, "linear": 0.75, "fps": 4.0}  # s, issue 3
+NUMBA = {"fixed": 0.14, "linear": 0.21, "fps": 1.1}  # s, hand-written Numba (issue 3)
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--sample", type=int, default=40)
+    p.add_argument("--bases", default="fixed,linear,fps")
+    p.add_argument("--chunk-size", type=int, default=16)
+    p.add_argument("--rtol", type=float, default=1e-8)
+    a = p.parse_args()
+    lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
+    size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
+    motion = jr.near_fault_pulse(PULSE)
+    table = jr._ground._TABLE_3_1[PULSE]
+    acc, t_end, max_step = ref.mp_pulse(table[0] / 100, table[3], table[1], table[2])
+    rng = np.random.default_rng(0)
+    rows = []
+    for name in a.bases.split(","):
+        base, ref_base = BASES[name]
+        kw = dict(rtol=a.rtol, atol=a.rtol * 1e-2, chunk_size=a.chunk_size,
+                  progress=False)
+        t = time.perf_counter()
+        first = jr.behavior_map(lam, size, base, motion, **kw)
+        first_s = time.perf_counter() - t
+        runs = [jr.behavior_map(lam, size, base, motion, **kw) for _ in range(a.repeats)]
+        best = min(r.seconds for r in runs)
+        bm = runs[0]
+        cells = rng.choice(lam.size * size.size, a.sample, replace=False)
+        t = time.perf_counter()
+        agree = 0
+        for c in cells:
+            i, j = divmod(int(c), size.size)
+            out = ref.simulate(lam[i], size[j], ref_base, acc, t_end + 5.0, max_step,
+                               rtol=a.rtol, atol=a.rtol * 1e-2)
+            agree += out["outcome"] == bm.outcome[i, j]
+        scipy_map = (time.perf_counter() - t) / a.sample * lam.size * size.size
+        rows.append(dict(
+            base=name, cells=int(bm.outcome.size), compile_s=first_s - best,
+            run_s=best, analyses_per_s=bm.outcome.size / best,
+            lane_efficiency=bm.lane_efficiency, steps=int(bm.steps.sum()),
+            peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            scipy_map_s=scipy_map, speedup_vs_scipy=scipy_map / best,
+            scipy_sample=a.sample, scipy_outcome_agreement=agree / a.sample,
+            target_s=TARGETS[name], numba_s=NUMBA[name],
+            counts=bm.counts(), rtol=a.rtol, chunk_size=a.chunk_size,
+        ))
+        print(f"{name}: {bm.summary()}", flush=True)
+    header = ("| base | compile (s) | run (s) | target (s) | Numba (s) | analyses/s "
+              "| lane eff. | SciPy map (s, extrap.) | speed-up | peak RSS (MB) |")
+    lines = [header, "|" + "---|" * 10]
+    for r in rows:
+        lines.append(
+            f"| {r['base']} | {r['compile_s']:.1f} | {r['run_s']:.2f} | "
+            f"{r['target_s']} | {r['numba_s']} | {r['analyses_per_s']:.0f} | "
+            f"{r['lane_efficiency']:.0%} | {r['scipy_map_s']:.0f} | "
+            f"{r['speedup_vs_scipy']:.0f}x | {r['peak_rss_mb']:.0f} |")
+    md = "\n".join(lines)
+    print(md)
+    out = ROOT / "benchmarks" / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "behavior_map.json").write_text(json.dumps(rows, indent=2))
+    (out / "behavior_map.md").write_text(md + "\n")
+
+
+if __name__ == "__main__":
+    main()
