@@ -34,6 +34,7 @@ from ._simulate import (  # noqa: E402
     Status as Status,
     simulate as simulate,
 )
+from . import design as design  # noqa: E402
 from . import io as io  # noqa: E402
 
 __version__ = importlib.metadata.version("jaxrock")

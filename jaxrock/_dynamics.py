@@ -36,6 +36,7 @@ class Args(eqx.Module):
     phase: jnp.ndarray
     sign: jnp.ndarray
     max_base_displacement: jnp.ndarray  # running max |u| so far (m)
+    ground_still: jnp.ndarray  # the excitation is over (fixed for a segment)
 
 
 def _geometry(block, theta, s):

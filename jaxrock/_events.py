@@ -11,7 +11,10 @@ ends), so a segment that starts exactly on a zero does not fire again at once.
 | FALLING     | theta = 0: impact                 | theta' = 0: rising again          |
 
 "base" (isolated bases only) fires where |u| has a local maximum above the
-running maximum, so max |u| is an exact extremum, not a sampled one.
+running maximum, so max |u| is an exact extremum, not a sampled one. "quiet"
+(isolated bases only) ends the analysis once the ground is still and the base's
+energy can neither uplift the block nor raise max |u| (the fixed base needs no
+event: a block at rest there after the excitation stays at rest).
 Diffrax lets the first condition in PyTree order win when several fire in one
 step, so the physical conditions come before "base".
 """
@@ -59,6 +62,24 @@ def condition_b(t, y, args: Args, **kwargs):
         s_theta_dot,
         -s_theta_dot,
     )
+
+
+def quiet(y, args: Args):
+    """<= 0 when nothing can happen any more: ground still, block in translation,
+    and the base's energy too low to uplift it or to raise max |u|."""
+    u_bound, f_bound = args.base.free_vibration_bounds(y[2])
+    value = jnp.maximum(u_bound - args.max_base_displacement,
+                        f_bound - args.block.uplift_acceleration)
+    # Armed per segment (not by t >= end_time inside one): a condition that jumped
+    # within a segment would be "located" at the jump, with a meaningless
+    # derivative.
+    armed = (args.phase == Phase.TRANSLATION) & args.ground_still
+    return jnp.where(armed, value, 1.0)
+
+
+def condition_quiet(t, y, args: Args, **kwargs):
+    del t, kwargs
+    return quiet(y, args)
 
 
 def condition_base(t, y, args: Args, **kwargs):

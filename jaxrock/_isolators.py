@@ -42,6 +42,15 @@ class AbstractIsolator(eqx.Module):
     def block_mass_fraction(self) -> Float[Array, ""]:
         """m / M = mbar / (1 + mbar); zero for a fixed base (m_b -> infinity)."""
 
+    @abc.abstractmethod
+    def free_vibration_bounds(self, state):
+        """Bounds (on |u| in m, on |F / M| in m/s^2) for all later times.
+
+        Valid while the ground is still and the block moves with the base: the
+        base's energy E cannot grow then, and bounds both. Used to end an
+        analysis early (nothing can happen any more); +inf where no bound holds.
+        """
+
 
 class FixedBase(AbstractIsolator):
     """No isolation: the block stands on the ground (Housner's problem, 1 DOF)."""
@@ -56,6 +65,9 @@ class FixedBase(AbstractIsolator):
 
     def rates(self, state, u_ddot):
         return None
+
+    def free_vibration_bounds(self, state):
+        return 0.0, 0.0
 
     @property
     def block_mass_fraction(self):
@@ -89,6 +101,14 @@ class LinearIsolator(AbstractIsolator):
 
     def rates(self, state, u_ddot):
         return jnp.stack([state[1], u_ddot])
+
+    def free_vibration_bounds(self, state):
+        # E = u'^2 / 2 + omega^2 u^2 / 2 decays (E' = -2 xi omega u'^2), and
+        # |u| <= sqrt(2E) / omega, |F / M| <= omega sqrt(2E) sqrt(1 + 4 xi^2).
+        omega = 2.0 * jnp.pi / self.period
+        # (sqrt of at least 1e-300: a finite derivative at rest)
+        amplitude = jnp.sqrt(jnp.maximum(state[1] ** 2 + (omega * state[0]) ** 2, 1e-300))
+        return amplitude / omega, omega * amplitude * jnp.sqrt(1.0 + 4.0 * self.damping**2)
 
     @property
     def block_mass_fraction(self):
@@ -130,6 +150,25 @@ class FrictionPendulum(AbstractIsolator):
 
     def force(self, state):
         return GRAVITY * (state[0] / self.radius + self.friction * state[2])
+
+    def free_vibration_bounds(self, state):
+        # E = u'^2 / 2 + g u^2 / (2R) + mu g Y z^2 / (2A) cannot grow when
+        # gamma >= |beta| (Bouc-Wen is then dissipative); |u| <= sqrt(2 R E / g),
+        # |z| <= sqrt(2 A E / (mu g Y)) and |F / M| <= g |u| / R + mu g |z|.
+        u, u_dot, z = state[0], state[1], state[2]
+        mu_g = self.friction * GRAVITY
+        energy = (0.5 * u_dot**2 + 0.5 * GRAVITY * u**2 / self.radius
+                  + 0.5 * mu_g * self.yield_displacement * z**2 / self.A)
+        energy = jnp.maximum(energy, 1e-300)  # a finite derivative of sqrt at rest
+        u_bound = jnp.sqrt(2.0 * self.radius * energy / GRAVITY)
+        # Starting from z = 0, |z| never exceeds z_max = (A / (gamma + beta))^(1/eta).
+        z_max = (self.A / (self.gamma + self.beta)) ** (1.0 / self.eta)
+        z_bound = jnp.minimum(z_max, jnp.sqrt(
+            2.0 * self.A * energy / jnp.maximum(mu_g * self.yield_displacement, 1e-300)))
+        f_bound = GRAVITY * u_bound / self.radius + mu_g * z_bound
+        dissipative = self.gamma >= jnp.abs(self.beta)
+        return (jnp.where(dissipative, u_bound, jnp.inf),
+                jnp.where(dissipative, f_bound, jnp.inf))
 
     def rates(self, state, u_ddot):
         u_dot, z = state[1], state[2]

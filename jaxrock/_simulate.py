@@ -27,7 +27,14 @@ from ._dynamics import (
     restitution,
     vector_field,
 )
-from ._events import BracketedNewton, condition_a, condition_b, condition_base
+from ._events import (
+    BracketedNewton,
+    condition_a,
+    condition_b,
+    condition_base,
+    condition_quiet,
+    quiet,
+)
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase
 from ._misc import as_float, positive
@@ -62,6 +69,7 @@ class EventKind(IntEnum):
     REVERSAL = 6  # theta' changed sign before reaching theta = 0
     BASE_PEAK = 7  # a new maximum of |u|
     FAILURE = 8
+    QUIET = 9  # ground still and too little energy left to uplift or move further
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,10 +204,11 @@ def _initial_carry(block, base, motion) -> _Carry:
 def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
     active = ~c.done & (c.segments < opts.max_segments)
-    args = Args(block, base, motion, c.phase, c.sign, c.max_u)
+    args = Args(block, base, motion, c.phase, c.sign, c.max_u,
+                c.t >= motion.end_time)
     conditions = (condition_a, condition_b)
     if not isinstance(base, FixedBase):
-        conditions = conditions + (condition_base,)
+        conditions = conditions + (condition_base, condition_quiet)
     event = diffrax.Event(
         conditions,
         root_finder=BracketedNewton(rtol=1e-14, atol=1e-12),
@@ -246,6 +255,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     mask = [m & event for m in sol.event_mask]
     hit_a, hit_b = mask[0], mask[1]
     hit_base = mask[2] if len(mask) > 2 else jnp.asarray(False)
+    hit_quiet = mask[3] if len(mask) > 3 else jnp.asarray(False)
     phase, sign = c.phase, c.sign
 
     uplift = (phase == Phase.TRANSLATION) & (hit_a | hit_b)
@@ -278,15 +288,15 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     new_sign = jnp.where(again, again_sign, new_sign)
     started = uplift | again
 
-    # A block at rest on a fixed base after the excitation stays at rest.
-    still = (
-        isinstance(base, FixedBase)
-        & (new_phase == Phase.TRANSLATION)
-        & (t >= motion.end_time)
-    )
     max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
-    max_theta = jnp.where(overturn, 0.5 * jnp.pi, max_theta)
     max_u = c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
+    # Nothing can happen any more (ground still, block in translation, base energy
+    # too low): the analysis ends early.
+    still = hit_quiet | (
+        quiet(y, Args(block, base, motion, new_phase, new_sign, max_u,
+                      t >= motion.end_time)) <= 0
+    )
+    max_theta = jnp.where(overturn, 0.5 * jnp.pi, max_theta)
     status = jnp.where(
         failed,
         jnp.where(
@@ -298,9 +308,10 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     )
     kind = jnp.select(
         [failed, uplift, apex, hit_ground & ~rest, hit_ground & rest, overturn, reversal,
-         hit_base],
+         hit_base, still],
         [EventKind.FAILURE, EventKind.UPLIFT, EventKind.APEX, EventKind.IMPACT,
-         EventKind.REST, EventKind.OVERTURN, EventKind.REVERSAL, EventKind.BASE_PEAK],
+         EventKind.REST, EventKind.OVERTURN, EventKind.REVERSAL, EventKind.BASE_PEAK,
+         EventKind.QUIET],
         EventKind.END,
     )
     new = _Carry(

@@ -63,7 +63,8 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     ax.set_xlabel("slenderness lambda = h/b")
     ax.set_ylabel("size r (m)")
     ax.set_title(title or f"{bmap.motion}\n{bmap.base}", fontsize=8)
-    ax.legend(loc="upper right", fontsize=7, markerscale=2)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4, fontsize=7,
+              markerscale=2, frameon=False)
     return ax
 
 
