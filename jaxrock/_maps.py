@@ -25,8 +25,16 @@ from ._simulate import (
     _transition,
 )
 
-_FIELDS = ("outcome", "max_rotation", "max_base_displacement", "impacts",
-           "uplift_time", "status", "steps", "segments")
+_FIELDS = (
+    "outcome",
+    "max_rotation",
+    "max_base_displacement",
+    "impacts",
+    "uplift_time",
+    "status",
+    "steps",
+    "segments",
+)
 
 
 @eqx.filter_jit
@@ -49,7 +57,9 @@ def _map_chunk(slenderness, size, base, motion, duration, opts):
 
     def one(c, block, base, motion):
         sol = _solve_segment(c, block, base, motion, duration, opts)
-        return _transition(c, sol, block, base, motion, duration, opts), sol.stats["num_steps"]
+        return _transition(c, sol, block, base, motion, duration, opts), sol.stats[
+            "num_steps"
+        ]
 
     def body(state):
         c, executed = state
@@ -74,19 +84,25 @@ def describe_base(base: AbstractIsolator) -> str:
     if isinstance(base, FixedBase):
         return "fixed base"
     if isinstance(base, LinearIsolator):
-        return (f"linear isolator (T_s = {_fmt(base.period)} s, "
-                f"xi = {_fmt(base.damping)}, mass ratio {_fmt(base.mass_ratio)})")
+        return (
+            f"linear isolator (T_s = {_fmt(base.period)} s, "
+            f"xi = {_fmt(base.damping)}, mass ratio {_fmt(base.mass_ratio)})"
+        )
     if isinstance(base, FrictionPendulum):
-        return (f"friction pendulum (mu = {_fmt(base.friction)}, "
-                f"R = {_fmt(base.radius)} m, mass ratio {_fmt(base.mass_ratio)})")
+        return (
+            f"friction pendulum (mu = {_fmt(base.friction)}, "
+            f"R = {_fmt(base.radius)} m, mass ratio {_fmt(base.mass_ratio)})"
+        )
     return type(base).__name__
 
 
 def describe_motion(motion: AbstractGroundMotion) -> str:
     if isinstance(motion, MPPulse):
-        return (f"MP pulse (A = {_fmt(motion.amplitude)} m/s, "
-                f"f_p = {_fmt(motion.frequency)} Hz, gamma = {_fmt(motion.gamma)}, "
-                f"nu = {_fmt(motion.phase)} deg)")
+        return (
+            f"MP pulse (A = {_fmt(motion.amplitude)} m/s, "
+            f"f_p = {_fmt(motion.frequency)} Hz, gamma = {_fmt(motion.gamma)}, "
+            f"nu = {_fmt(motion.phase)} deg)"
+        )
     if isinstance(motion, Record):
         return f"record ({motion.samples.shape[0]} samples, dt = {_fmt(motion.dt)} s)"
     return type(motion).__name__
@@ -125,18 +141,25 @@ class BehaviorMap(eqx.Module):
 
     def summary(self) -> str:
         c = self.counts()
-        text = (f"{self.outcome.size} analyses in {self.seconds:.2f} s: "
-                f"{c['no_rocking']} no rocking, {c['rocking']} rocking, "
-                f"{c['overturned']} overturned")
+        text = (
+            f"{self.outcome.size} analyses in {self.seconds:.2f} s: "
+            f"{c['no_rocking']} no rocking, {c['rocking']} rocking, "
+            f"{c['overturned']} overturned"
+        )
         if c["not_converged"]:
             text += f", {c['not_converged']} NOT CONVERGED (see status)"
         return text + f" [{self.motion}; {self.base}]"
 
     def save(self, path) -> None:
         """Write the arrays and metadata to an `.npz` file."""
-        meta = json.dumps({"base": self.base, "motion": self.motion,
-                           "seconds": self.seconds,
-                           "lane_efficiency": self.lane_efficiency})
+        meta = json.dumps(
+            {
+                "base": self.base,
+                "motion": self.motion,
+                "seconds": self.seconds,
+                "lane_efficiency": self.lane_efficiency,
+            }
+        )
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
         np.savez_compressed(path, metadata=np.array(meta), **arrays)
 
@@ -215,13 +238,14 @@ def behavior_map(
     chunk = n if chunk_size is None else min(chunk_size, n)
     # Padding repeats the last lane, so every chunk has one shape (one compile).
     index = np.minimum(np.arange(n + (-n) % chunk), n - 1)
-    ib, im, il, ir = (np.unravel_index(index, (int(np.prod(base_shape)),
-                                               int(np.prod(motion_shape)),
-                                               lam.size, r.size)))
+    ib, im, il, ir = np.unravel_index(
+        index, (int(np.prod(base_shape)), int(np.prod(motion_shape)), lam.size, r.size)
+    )
     lane_lam, lane_r = lam[il], r[ir]
     lane_base = _lanes(base, base_shape, ib)
-    lane_motion = motion if isinstance(motion, Record) else _lanes(
-        motion, motion_shape, im)
+    lane_motion = (
+        motion if isinstance(motion, Record) else _lanes(motion, motion_shape, im)
+    )
     starts = range(0, index.size, chunk)
     if progress is None:
         progress = len(starts) > 1
@@ -243,8 +267,9 @@ def behavior_map(
 
         d_motion, d_duration = shared[d]
         m = d_motion if isinstance(motion, Record) else part(lane_motion)
-        out = _map_chunk(part(lane_lam), part(lane_r), part(lane_base), m,
-                         d_duration, opts)
+        out = _map_chunk(
+            part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts
+        )
         return jax.device_get(out)
 
     workers = max(len(devices), os.cpu_count() or 1)
@@ -271,6 +296,12 @@ def behavior_map(
         for k in _FIELDS
     }
     useful = int(np.concatenate([p.steps for p in parts]).sum())
-    return BehaviorMap(slenderness=lam, size=r, **fields, base=describe_base(base),
-                       motion=describe_motion(motion), seconds=seconds,
-                       lane_efficiency=useful / max(executed, 1))
+    return BehaviorMap(
+        slenderness=lam,
+        size=r,
+        **fields,
+        base=describe_base(base),
+        motion=describe_motion(motion),
+        seconds=seconds,
+        lane_efficiency=useful / max(executed, 1),
+    )

@@ -31,7 +31,9 @@ def check(name: str, x, ok, allowed: str) -> None:
     if not np.all(np.isfinite(value)) or not np.all(ok(value)):
         bad = value if value.ndim == 0 else value[~(np.isfinite(value) & ok(value))]
         shown = np.ravel(bad)[:3].tolist()
-        raise ValueError(f"`{name}` must be {allowed}, got {shown[0] if value.ndim == 0 else shown}")
+        raise ValueError(
+            f"`{name}` must be {allowed}, got {shown[0] if value.ndim == 0 else shown}"
+        )
 
 
 def positive(name: str, x) -> None:

@@ -204,8 +204,7 @@ def _initial_carry(block, base, motion) -> _Carry:
 def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
     active = ~c.done & (c.segments < opts.max_segments)
-    args = Args(block, base, motion, c.phase, c.sign, c.max_u,
-                c.t >= motion.end_time)
+    args = Args(block, base, motion, c.phase, c.sign, c.max_u, c.t >= motion.end_time)
     conditions = (condition_a, condition_b)
     if not isinstance(base, FixedBase):
         conditions = conditions + (condition_base, condition_quiet)
@@ -289,12 +288,17 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     started = uplift | again
 
     max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
-    max_u = c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
+    max_u = (
+        c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
+    )
     # Nothing can happen any more (ground still, block in translation, base energy
     # too low): the analysis ends early.
     still = hit_quiet | (
-        quiet(y, Args(block, base, motion, new_phase, new_sign, max_u,
-                      t >= motion.end_time)) <= 0
+        quiet(
+            y,
+            Args(block, base, motion, new_phase, new_sign, max_u, t >= motion.end_time),
+        )
+        <= 0
     )
     max_theta = jnp.where(overturn, 0.5 * jnp.pi, max_theta)
     status = jnp.where(
@@ -307,11 +311,28 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         c.status,
     )
     kind = jnp.select(
-        [failed, uplift, apex, hit_ground & ~rest, hit_ground & rest, overturn, reversal,
-         hit_base, still],
-        [EventKind.FAILURE, EventKind.UPLIFT, EventKind.APEX, EventKind.IMPACT,
-         EventKind.REST, EventKind.OVERTURN, EventKind.REVERSAL, EventKind.BASE_PEAK,
-         EventKind.QUIET],
+        [
+            failed,
+            uplift,
+            apex,
+            hit_ground & ~rest,
+            hit_ground & rest,
+            overturn,
+            reversal,
+            hit_base,
+            still,
+        ],
+        [
+            EventKind.FAILURE,
+            EventKind.UPLIFT,
+            EventKind.APEX,
+            EventKind.IMPACT,
+            EventKind.REST,
+            EventKind.OVERTURN,
+            EventKind.REVERSAL,
+            EventKind.BASE_PEAK,
+            EventKind.QUIET,
+        ],
         EventKind.END,
     )
     new = _Carry(
@@ -332,9 +353,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         kind=kind,
     )
     # A frozen lane keeps its carry.
-    return jax.tree_util.tree_map(
-        lambda n, o: jnp.where(active, n, o), new, c
-    )
+    return jax.tree_util.tree_map(lambda n, o: jnp.where(active, n, o), new, c)
 
 
 def _response(c: _Carry, block, opts) -> Response:
@@ -384,41 +403,61 @@ def _segment_dense(c, block, base, motion, duration, opts, grid):
     return new, inside, ys
 
 
-def _history(block, base, motion, duration, opts, samples=2001) -> tuple:
-    """Python-level loop over the same segments, recording dense output."""
+def _rows(t, y, regime) -> np.ndarray:
+    """History rows (t, theta, theta', u, u', z, regime) from states at times t."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    out = np.zeros((t.size, 7))
+    out[:, 0] = t
+    out[:, 1] = np.asarray(y[0]).reshape(t.size)
+    out[:, 2] = np.asarray(y[1]).reshape(t.size)
+    if y[2] is not None:
+        base = np.asarray(y[2]).reshape(t.size, -1)
+        out[:, 3 : 3 + base.shape[1]] = base
+    out[:, 6] = regime
+    return out
+
+
+def _history(block, base, motion, duration, opts, samples=2001):
+    """The same segments in a Python loop, sampled on a grid and at every event.
+
+    Returns the final carry and a `History`; at an event both the state just
+    before and just after the transition are recorded (same time).
+    """
     grid = jnp.linspace(0.0, duration, samples)
     c = _initial_carry(block, base, motion)
-    rows = []  # (t, theta, theta_dot, base state, regime)
-    times, kinds = [], []
 
     def regime(carry):
         return 0.0 if int(carry.phase) == Phase.TRANSLATION else float(carry.sign)
 
-    def point(t, y, reg):
-        rows.append((float(t), float(y[0]), float(y[1]),
-                     None if y[2] is None else np.asarray(y[2]), reg))
-
-    point(c.t, c.y, regime(c))
-    if bool(c.rocked):
-        times.append(0.0)
-        kinds.append(EventKind.UPLIFT.name.lower())
+    rows = [_rows(c.t, c.y, regime(c))]
+    times, kinds = ([0.0], ["uplift"]) if bool(c.rocked) else ([], [])
     while not bool(c.done) and int(c.segments) < opts.max_segments:
         new, inside, ys = _segment_dense(c, block, base, motion, duration, opts, grid)
-        reg = regime(c)
-        inside = np.asarray(inside)
-        for k in np.flatnonzero(inside):
-            y = jax.tree_util.tree_map(lambda x: x[k], ys)
-            point(grid[k], y, reg)
-        # The state just before the transition, then just after it.
-        pre = jax.tree_util.tree_map(lambda x: x[-1], ys)  # evaluated at new.t
-        point(new.t, pre, reg)
-        point(new.t, new.y, regime(new))
+        inside = np.array(inside)
+        inside[-1] = True  # grid[-1] is clipped to new.t: the state before the event
+        take = jax.tree_util.tree_map(lambda x: np.asarray(x)[inside], ys)
+        ts = np.where(np.arange(samples) == samples - 1, float(new.t), grid)[inside]
+        rows += [_rows(ts, take, regime(c)), _rows(new.t, new.y, regime(new))]
         kind = EventKind(int(new.kind))
         if kind != EventKind.END:
             times.append(float(new.t))
             kinds.append(kind.name.lower())
         c = new
-    return c, rows, np.asarray(times), tuple(kinds)
+    h = np.concatenate(rows)
+    history = History(
+        t=h[:, 0],
+        theta=h[:, 1],
+        theta_dot=h[:, 2],
+        u=h[:, 3],
+        u_dot=h[:, 4],
+        z=h[:, 5],
+        regime=h[:, 6],
+        ground_acceleration=np.asarray(jax.vmap(motion.acceleration)(h[:, 0])),
+        event_times=np.asarray(times),
+        event_kinds=tuple(kinds),
+        alpha=float(block.alpha),
+    )
+    return c, history
 
 
 def simulate(
@@ -453,27 +492,8 @@ def simulate(
     positive("atol", atol)
     if not history:
         return _run_jit(block, base, motion, duration, opts)
-    c, rows, times, kinds = _history(block, base, motion, duration, opts)
+    c, hist = _history(block, base, motion, duration, opts)
     response = _response(c, block, opts)
-    n = len(rows)
-    base_states = np.zeros((n, 3))
-    for i, r in enumerate(rows):
-        if r[3] is not None:
-            base_states[i, : r[3].shape[0]] = r[3]
-    t = np.array([r[0] for r in rows])
-    hist = History(
-        t=t,
-        theta=np.array([r[1] for r in rows]),
-        theta_dot=np.array([r[2] for r in rows]),
-        u=base_states[:, 0],
-        u_dot=base_states[:, 1],
-        z=base_states[:, 2],
-        regime=np.array([r[4] for r in rows]),
-        ground_acceleration=np.asarray(jax.vmap(motion.acceleration)(jnp.asarray(t))),
-        event_times=times,
-        event_kinds=kinds,
-        alpha=float(block.alpha),
-    )
     return eqx.tree_at(lambda r: r.history, response, hist, is_leaf=lambda x: x is None)
 
 

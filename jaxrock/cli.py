@@ -29,14 +29,25 @@ def _parser():
 
     def common(q):
         g = q.add_mutually_exclusive_group()
-        g.add_argument("--pulse", default="San Fernando PCD/SN",
-                       help="a Table 3.1 pulse name (default: %(default)s)")
+        g.add_argument(
+            "--pulse",
+            default="San Fernando PCD/SN",
+            help="a Table 3.1 pulse name (default: %(default)s)",
+        )
         g.add_argument("--record", help="a PEER NGA .AT2 file instead of a pulse")
-        q.add_argument("--scale", type=float, default=1.0,
-                       help="amplitude factor of the motion (default 1)")
-        q.add_argument("--base", choices=["fixed", "linear", "fps"], default="linear",
-                       help="base to analyse (default linear; `map` also draws the "
-                       "fixed base beside it unless --no-compare)")
+        q.add_argument(
+            "--scale",
+            type=float,
+            default=1.0,
+            help="amplitude factor of the motion (default 1)",
+        )
+        q.add_argument(
+            "--base",
+            choices=["fixed", "linear", "fps"],
+            default="linear",
+            help="base to analyse (default linear; `map` also draws the "
+            "fixed base beside it unless --no-compare)",
+        )
         q.add_argument("--period", type=float, default=2.0, help="T_s (s)")
         q.add_argument("--damping", type=float, default=0.35, help="xi")
         q.add_argument("--friction", type=float, default=0.11, help="mu (fps)")
@@ -46,12 +57,23 @@ def _parser():
 
     m = sub.add_parser("map", help="behavior map over slenderness and size")
     common(m)
-    m.add_argument("--slenderness", type=_range, default="1.0:7.0:61",
-                   help="START:STOP:N (default 1.0:7.0:61)")
-    m.add_argument("--size", type=_range, default="0.1:4.0:40",
-                   help="START:STOP:N in m (default 0.1:4.0:40)")
-    m.add_argument("--no-compare", action="store_true",
-                   help="only the chosen base, not the fixed base beside it")
+    m.add_argument(
+        "--slenderness",
+        type=_range,
+        default="1.0:7.0:61",
+        help="START:STOP:N (default 1.0:7.0:61)",
+    )
+    m.add_argument(
+        "--size",
+        type=_range,
+        default="0.1:4.0:40",
+        help="START:STOP:N in m (default 0.1:4.0:40)",
+    )
+    m.add_argument(
+        "--no-compare",
+        action="store_true",
+        help="only the chosen base, not the fixed base beside it",
+    )
     m.add_argument("--chunk-size", type=int, default=16)
     s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
     common(s)
@@ -101,8 +123,9 @@ def main(argv=None) -> int:
         bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
         maps = []
         for b in bases:
-            bm = jr.behavior_map(a.slenderness, a.size, b, motion,
-                                 chunk_size=a.chunk_size)
+            bm = jr.behavior_map(
+                a.slenderness, a.size, b, motion, chunk_size=a.chunk_size
+            )
             print(bm.summary().replace(bm.motion, name))
             maps.append(bm)
         out = a.out or "behavior_map.png"

@@ -6,11 +6,17 @@ import numpy as np
 from ._maps import BehaviorMap
 from ._simulate import Outcome, Response
 
-_COLOURS = {Outcome.NO_ROCKING: ("tab:blue", "No rocking"),
-            Outcome.ROCKING: ("tab:green", "Rocking"),
-            Outcome.OVERTURNED: ("tab:red", "Overturning")}
-_MARKERS = {"uplift": ("^", "k"), "impact": ("v", "tab:orange"),
-            "rest": ("s", "tab:gray"), "overturn": ("x", "tab:red")}
+_COLOURS = {
+    Outcome.NO_ROCKING: ("tab:blue", "No rocking"),
+    Outcome.ROCKING: ("tab:green", "Rocking"),
+    Outcome.OVERTURNED: ("tab:red", "Overturning"),
+}
+_MARKERS = {
+    "uplift": ("^", "k"),
+    "impact": ("v", "tab:orange"),
+    "rest": ("s", "tab:gray"),
+    "overturn": ("x", "tab:red"),
+}
 
 
 def response(resp: Response, axes=None):
@@ -35,8 +41,9 @@ def response(resp: Response, axes=None):
     for kind, (marker, colour) in _MARKERS.items():
         ts = [t for t, k in zip(h.event_times, h.event_kinds) if k == kind]
         if ts:
-            axes[2].plot(ts, np.zeros(len(ts)), marker, color=colour, ls="none",
-                         label=kind)
+            axes[2].plot(
+                ts, np.zeros(len(ts)), marker, color=colour, ls="none", label=kind
+            )
     if any(k in _MARKERS for k in h.event_kinds):
         axes[2].legend(loc="best", fontsize=8)
     axes[2].set_xlabel("t (s)")
@@ -63,17 +70,29 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     ax.set_xlabel("slenderness lambda = h/b")
     ax.set_ylabel("size r (m)")
     ax.set_title(title or f"{bmap.motion}\n{bmap.base}", fontsize=8)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4, fontsize=7,
-              markerscale=2, frameon=False)
+    ax.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.13),
+        ncol=4,
+        fontsize=7,
+        markerscale=2,
+        frameon=False,
+    )
     return ax
 
 
 def compare_maps(maps, titles=None):
-    """Maps side by side with shared axes (fixed vs isolated, ...). Returns the figure."""
+    """Maps side by side, shared axes (fixed vs isolated, ...). Returns the figure."""
     maps = list(maps)
     titles = titles or [None] * len(maps)
-    fig, axes = plt.subplots(1, len(maps), figsize=(5.5 * len(maps), 5),
-                             sharex=True, sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        1,
+        len(maps),
+        figsize=(5.5 * len(maps), 5),
+        sharex=True,
+        sharey=True,
+        squeeze=False,
+    )
     for ax, m, t in zip(axes[0], maps, titles):
         behavior_map(m, ax=ax, title=t)
     fig.tight_layout()

@@ -1,6 +1,10 @@
+import os
+
 import matplotlib
 
 matplotlib.use("Agg")
+# Notebooks (run by nbmake) take their small configuration.
+os.environ.setdefault("JAXROCK_SMALL", "1")
 
 import jax  # noqa: E402
 

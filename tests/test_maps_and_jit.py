@@ -18,16 +18,26 @@ def test_new_parameters_do_not_recompile():
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
     jr.simulate(jr.Block(3.0, 1.0), base, PULSE)
     before = run._cache_size()
-    jr.simulate(jr.Block(4.5, 0.7), jr.LinearIsolator(1.5, 0.2, 0.8),
-                jr.near_fault_pulse("Tabas TAB/SP"), duration=20.0)
+    jr.simulate(
+        jr.Block(4.5, 0.7),
+        jr.LinearIsolator(1.5, 0.2, 0.8),
+        jr.near_fault_pulse("Tabas TAB/SP"),
+        duration=20.0,
+    )
     jr.simulate(jr.Block(2.0, 3.0), base, jr.MPPulse(0.5, 1.0, 2.0, 45.0, t0=1.0))
     assert run._cache_size() == before
 
 
 @pytest.fixture(scope="module")
 def linear_map():
-    return jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE,
-                           chunk_size=4, progress=False)
+    return jr.behavior_map(
+        LAM,
+        SIZE,
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        PULSE,
+        chunk_size=4,
+        progress=False,
+    )
 
 
 def test_map_equals_simulate_cell_by_cell(linear_map):
@@ -40,35 +50,44 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             assert linear_map.impacts[i, j] == int(one.impacts)
             # Batched and single-lane XLA code round differently in the last
             # bits; rocking amplifies that to about 1e-11.
-            np.testing.assert_allclose(linear_map.max_rotation[i, j],
-                                       float(one.max_rotation), rtol=1e-9)
+            np.testing.assert_allclose(
+                linear_map.max_rotation[i, j], float(one.max_rotation), rtol=1e-9
+            )
     # The grid holds every outcome, so the comparison means something.
     assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
 
 
 def test_chunking_does_not_change_results(linear_map):
-    whole = jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE,
-                            chunk_size=None)
+    whole = jr.behavior_map(
+        LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE, chunk_size=None
+    )
     # Integer results are identical; floats agree to rounding (XLA vectorises a
     # batch of 15 lanes differently from batches of 4; rocking amplifies the
     # last-bit differences to about 1e-11).
     for k in ("outcome", "impacts", "status"):
         np.testing.assert_array_equal(getattr(whole, k), getattr(linear_map, k))
     for k in ("max_rotation", "max_base_displacement", "uplift_time"):
-        np.testing.assert_allclose(getattr(whole, k), getattr(linear_map, k),
-                                   rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(
+            getattr(whole, k), getattr(linear_map, k), rtol=1e-9, atol=1e-15
+        )
 
 
 def test_new_map_parameters_reuse_compile(linear_map):
     before = _maps._map_chunk._cached._cache_size()
-    jr.behavior_map(LAM + 0.05, SIZE * 1.1, jr.LinearIsolator(1.5, 0.1, 0.3),
-                    jr.near_fault_pulse("Northridge JFA/SN"), chunk_size=4)
+    jr.behavior_map(
+        LAM + 0.05,
+        SIZE * 1.1,
+        jr.LinearIsolator(1.5, 0.1, 0.3),
+        jr.near_fault_pulse("Northridge JFA/SN"),
+        chunk_size=4,
+    )
     assert _maps._map_chunk._cached._cache_size() == before
 
 
 def test_fixed_map_no_rocking_cells_obey_threshold():
-    bm = jr.behavior_map(np.linspace(1.2, 4.0, 8), [0.5, 2.0], jr.FixedBase(), PULSE,
-                         chunk_size=8)
+    bm = jr.behavior_map(
+        np.linspace(1.2, 4.0, 8), [0.5, 2.0], jr.FixedBase(), PULSE, chunk_size=8
+    )
     ts = np.linspace(0.0, float(PULSE.end_time), 100001)
     pga = float(np.max(np.abs(np.asarray(jax.vmap(PULSE.acceleration)(ts)))))
     lam = bm.slenderness[:, None] * np.ones_like(bm.size)[None, :]
@@ -89,24 +108,43 @@ def test_save_load_roundtrip(linear_map, tmp_path):
 
 def test_cli_map_and_simulate(tmp_path, capsys):
     out = tmp_path / "bm.png"
-    assert main(["map", "--slenderness", "2:6:3", "--size", "0.5:2:2",
-                 "--out", str(out)]) == 0
+    assert (
+        main(["map", "--slenderness", "2:6:3", "--size", "0.5:2:2", "--out", str(out)])
+        == 0
+    )
     assert out.stat().st_size > 10_000
     assert (tmp_path / "bm_FixedBase.npz").exists()
     assert (tmp_path / "bm_LinearIsolator.npz").exists()
     text = capsys.readouterr().out
     assert "6 analyses" in text
     png = tmp_path / "one.png"
-    assert main(["simulate", "--slenderness", "4", "--size", "1", "--base", "fps",
-                 "--out", str(png)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--slenderness",
+                "4",
+                "--size",
+                "1",
+                "--base",
+                "fps",
+                "--out",
+                str(png),
+            ]
+        )
+        == 0
+    )
     assert png.stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["map", "--pulse", "Atlantis X/Y"], "unknown pulse"),
-    (["map", "--record", "/nonexistent.AT2"], "no such file"),
-    (["simulate", "--size", "-1"], "`size` must be"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["map", "--pulse", "Atlantis X/Y"], "unknown pulse"),
+        (["map", "--record", "/nonexistent.AT2"], "no such file"),
+        (["simulate", "--size", "-1"], "`size` must be"),
+    ],
+)
 def test_cli_errors_are_one_line(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
@@ -128,8 +166,9 @@ def test_ensembles_add_leading_axes(linear_map):
     np.testing.assert_allclose(bm.max_rotation[1], linear_map.max_rotation, rtol=1e-9)
     assert not np.array_equal(bm.max_base_displacement[0], bm.max_base_displacement[1])
     pulses = jr.MPPulse(np.array([0.3, 1.15]), 0.68, 1.6, 180.0)
-    bm = jr.behavior_map(LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), pulses,
-                         chunk_size=4)
+    bm = jr.behavior_map(
+        LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), pulses, chunk_size=4
+    )
     assert bm.outcome.shape == (2, 5, 3)
     np.testing.assert_array_equal(bm.outcome[1], linear_map.outcome)
     assert np.all(bm.outcome[0] <= bm.outcome[1])  # a weaker pulse does no more harm

