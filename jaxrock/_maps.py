@@ -5,6 +5,7 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -203,6 +204,7 @@ def behavior_map(
     progress: bool | None = None,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
+    solver=None,
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
@@ -231,7 +233,9 @@ def behavior_map(
     positive("duration", duration)
     if chunk_size is not None and chunk_size < 1:
         raise ValueError(f"`chunk_size` must be >= 1 or None, got {chunk_size}")
-    opts = SolverOptions(rtol, atol, 16384, max_segments, rest_tolerance)
+    opts = SolverOptions(
+        rtol, atol, 16384, max_segments, rest_tolerance, solver or diffrax.Tsit5()
+    )
 
     shape = base_shape + motion_shape + (lam.size, r.size)
     n = int(np.prod(shape))

@@ -8,7 +8,6 @@ is a `lax.while_loop`, so `simulate` runs under `jit` and `vmap`: a finished
 lane performs zero-length solves until every lane is done.
 """
 
-import dataclasses
 from enum import IntEnum
 
 import diffrax
@@ -37,7 +36,7 @@ from ._events import (
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase
-from ._misc import as_float, positive
+from ._misc import as_float, nonnegative, positive
 
 
 class Outcome(IntEnum):
@@ -72,24 +71,39 @@ class EventKind(IntEnum):
     QUIET = 9  # ground still and too little energy left to uplift or move further
 
 
-@dataclasses.dataclass(frozen=True)
-class SolverOptions:
-    """Numerical options (static: changing them recompiles).
+class SolverOptions(eqx.Module):
+    """Numerical options. Tolerances are traced (new values do not recompile);
+    the solver, `step` being set or not, and the limits are static.
 
-    `rtol`, `atol`: Tsit5's PID tolerances. `max_steps`: step limit of one
-    segment. `max_segments`: limit on segments (events) of one analysis.
-    `rest_tolerance`: rest rule against Zeno chattering: rocking ends at an
+    `rtol`, `atol`: PID tolerances. `solver`: a Diffrax solver (default Tsit5).
+    `step`: a fixed step (s) instead of the PID controller; events are then
+    located at step ends only (no root find), the naive baseline of the
+    work-precision study. `max_steps`: step limit of one segment.
+    `max_segments`: limit on the segments (events) of one analysis.
+    `rest_tolerance`: the rest rule against Zeno chattering: rocking ends at an
     impact when the rebound could lift the block by less than
     `rest_tolerance * alpha`, estimated as theta'+^2 / (2 p^2 sin alpha) (free
     rocking from theta = 0), or when e <= 0 (Eq. 2.13).
     """
 
-    rtol: float = 1e-8
-    atol: float = 1e-10
-    max_steps: int = 16384
-    max_segments: int = 2000
-    rest_tolerance: float = 1e-6
-    solver: diffrax.AbstractSolver = dataclasses.field(default_factory=diffrax.Tsit5)
+    rtol: Float[Array, ""] = eqx.field(default=1e-8, converter=as_float)
+    atol: Float[Array, ""] = eqx.field(default=1e-10, converter=as_float)
+    max_steps: int = eqx.field(default=16384, static=True)
+    max_segments: int = eqx.field(default=2000, static=True)
+    rest_tolerance: Float[Array, ""] = eqx.field(default=1e-6, converter=as_float)
+    solver: diffrax.AbstractSolver = eqx.field(
+        default_factory=diffrax.Tsit5, static=True
+    )
+    step: Float[Array, ""] | None = None
+
+    def __check_init__(self):
+        positive("rtol", self.rtol)
+        positive("atol", self.atol)
+        nonnegative("rest_tolerance", self.rest_tolerance)
+        if self.step is not None:
+            positive("step", self.step)
+        if self.max_steps < 1 or self.max_segments < 1:
+            raise ValueError("`max_steps` and `max_segments` must be >= 1")
 
 
 class History(eqx.Module):
@@ -208,30 +222,30 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     conditions = (condition_a, condition_b)
     if not isinstance(base, FixedBase):
         conditions = conditions + (condition_base, condition_quiet)
-    event = diffrax.Event(
-        conditions,
-        root_finder=BracketedNewton(rtol=1e-14, atol=1e-12),
-        direction=False,
-    )
     # A segment stops at the end of the excitation: the step limit that keeps
     # uplifts from hiding inside a step is needed only while the ground moves.
     shaking = c.t < motion.end_time
     t_stop = jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
-    max_step = motion.max_step
-    controller = diffrax.PIDController(
-        rtol=opts.rtol,
-        atol=opts.atol,
-        dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
-        step_ts=motion.step_ts,
-        jump_ts=motion.jump_ts,
-    )
+    if opts.step is None:
+        max_step = motion.max_step
+        controller = diffrax.PIDController(
+            rtol=opts.rtol,
+            atol=opts.atol,
+            dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
+            step_ts=motion.step_ts,
+            jump_ts=motion.jump_ts,
+        )
+        root_finder, dt0 = BracketedNewton(rtol=1e-14, atol=1e-12), None
+    else:
+        controller, root_finder, dt0 = diffrax.ConstantStepSize(), None, opts.step
+    event = diffrax.Event(conditions, root_finder=root_finder, direction=False)
     return diffrax.diffeqsolve(
         diffrax.ODETerm(vector_field),
         opts.solver,
         t0=c.t,
         # A finished lane makes a zero-length solve (vmap runs every lane's body).
         t1=jnp.where(active, t_stop, c.t),
-        dt0=None,
+        dt0=dt0,
         y0=c.y,
         args=args,
         event=event,
@@ -472,6 +486,7 @@ def simulate(
     max_steps: int = 16384,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
+    solver: diffrax.AbstractSolver | None = None,
 ) -> Response:
     """Simulate one block on a base under a ground motion (SI units, float64).
 
@@ -480,16 +495,17 @@ def simulate(
     output. `history=True` adds the time histories (a Python loop of compiled
     segments). Physical parameters and `duration` are traced: new values do not
     recompile. Works under `jax.jit`, `jax.vmap` and `jax.jacfwd` (with
-    `history=False`); check `response.status` (or `response.ok`).
+    `history=False`); check `response.status` (or `response.ok`). `solver`: a
+    Diffrax solver (default `diffrax.Tsit5()`); the rest: see `SolverOptions`.
     """
     _check_types(block, base, motion)
     if duration is None:
         duration = motion.end_time + 5.0
     positive("duration", duration)
     duration = as_float(duration)
-    opts = SolverOptions(rtol, atol, max_steps, max_segments, rest_tolerance)
-    positive("rtol", rtol)
-    positive("atol", atol)
+    opts = SolverOptions(
+        rtol, atol, max_steps, max_segments, rest_tolerance, solver or diffrax.Tsit5()
+    )
     if not history:
         return _run_jit(block, base, motion, duration, opts)
     c, hist = _history(block, base, motion, duration, opts)

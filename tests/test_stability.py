@@ -1,0 +1,158 @@
+"""Where numerical methods fail, and how jaxrock detects it (issue #5)."""
+
+import diffrax
+import numpy as np
+import pytest
+import reference as ref
+
+import jaxrock as jr
+from jaxrock import _simulate
+from jaxrock._solvers import RK4
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+A, FREQ, GAMMA, PHASE = 1.15, 0.68, 1.6, 180.0
+
+
+def test_bouc_wen_stiffness_drives_the_step_count_and_limits_are_reported():
+    """Smaller yield displacement Y = stiffer z: the explicit step count grows
+    about as 1/Y; a segment that runs out of steps says so in `status`."""
+    block = jr.Block(2.0, 1.0)  # never rocks: the base alone
+    steps = {}
+    for y in (5e-4, 5e-5):
+        r = jr.simulate(
+            block, jr.FrictionPendulum(0.11, 2.24, 0.5, yield_displacement=y), PULSE
+        )
+        assert int(r.status) == jr.Status.SUCCESS
+        steps[y] = int(r.steps)
+    assert steps[5e-5] > 3 * steps[5e-4]
+    capped = jr.simulate(
+        block, jr.FrictionPendulum(0.11, 2.24, 0.5), PULSE, max_steps=200
+    )
+    assert int(capped.status) == jr.Status.MAX_STEPS
+    assert not bool(capped.ok) and "not converged" in capped.summary()
+
+
+def test_zeno_without_rest_rule_hits_the_segment_limit():
+    """Free rocking with rest_tolerance = 0: impacts pile up in finite time."""
+    block, base = jr.Block(6.0, 2.0), jr.FixedBase()
+    zeno = jr.simulate(
+        block, base, PULSE, duration=40.0, rest_tolerance=0.0, max_segments=400
+    )
+    assert int(zeno.status) == jr.Status.MAX_SEGMENTS
+    ruled = jr.simulate(block, base, PULSE, duration=40.0)
+    assert int(ruled.status) == jr.Status.SUCCESS
+    # The threshold changes neither the outcome nor the max rotation beyond 1e-9.
+    for tol in (1e-8, 1e-4):
+        other = jr.simulate(block, base, PULSE, duration=40.0, rest_tolerance=tol)
+        assert int(other.outcome) == int(ruled.outcome)
+        assert float(other.max_rotation) == pytest.approx(
+            float(ruled.max_rotation), rel=1e-9
+        )
+
+
+@pytest.mark.parametrize(
+    "lam, size, scale",
+    [
+        (20.0, 1.0, 0.3),  # very slender: alpha = 0.05 rad
+        (4.0, 0.05, 1.0),  # very small: p = 12 rad/s
+        (0.6, 1.0, 4.5),  # very squat: e < 0 (Eq. 2.13), every impact ends rocking
+    ],
+)
+@pytest.mark.parametrize("base_key", ["fixed", "linear"])
+def test_extremes_of_the_grid_match_reference(lam, size, scale, base_key):
+    bases = {
+        "fixed": (jr.FixedBase(), ("fixed",)),
+        "linear": (jr.LinearIsolator(2.0, 0.35, 0.5), ("linear", 2.0, 0.35, 0.5)),
+    }
+    base, ref_base = bases[base_key]
+    ours = jr.simulate(
+        jr.Block(lam, size),
+        base,
+        jr.MPPulse(A * scale, FREQ, GAMMA, PHASE),
+        rtol=1e-10,
+        atol=1e-12,
+    )
+    acc, t_end, max_step = ref.mp_pulse(A * scale, FREQ, GAMMA, PHASE)
+    theirs = ref.simulate(lam, size, ref_base, acc, t_end + 5.0, max_step)
+    assert int(ours.status) == jr.Status.SUCCESS
+    assert int(ours.outcome) == theirs["outcome"]
+    assert int(ours.impacts) == theirs["impacts"]
+    np.testing.assert_allclose(
+        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
+    )
+    if lam < 1:
+        assert int(ours.outcome) != jr.Outcome.NO_ROCKING  # the case must rock
+        e, _ = jr._dynamics.restitution(jr.Block(lam, size), base)
+        assert float(e) < 0
+        # e < 0: no impact re-uplifts; each one ends rocking (a log of rests).
+        assert all(after[1] == 0.0 for after in theirs["impact_log"])
+
+
+def test_near_overturn_bracket():
+    """Amplitudes bracketing the overturning threshold: max |theta| approaches
+    and passes alpha; both sides agree with the reference."""
+    lam, size = 5.0, 1.0
+    outcomes = []
+    for scale in np.linspace(0.6, 1.0, 5):
+        ours = jr.simulate(
+            jr.Block(lam, size),
+            jr.FixedBase(),
+            jr.MPPulse(A * scale, FREQ, GAMMA, PHASE),
+            rtol=1e-10,
+            atol=1e-12,
+        )
+        acc, t_end, max_step = ref.mp_pulse(A * scale, FREQ, GAMMA, PHASE)
+        theirs = ref.simulate(lam, size, ("fixed",), acc, t_end + 5.0, max_step)
+        assert int(ours.outcome) == theirs["outcome"]
+        np.testing.assert_allclose(
+            float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6
+        )
+        outcomes.append((int(ours.outcome), float(ours.max_rotation)))
+    kinds = [o for o, _ in outcomes]
+    assert jr.Outcome.ROCKING in kinds and jr.Outcome.OVERTURNED in kinds
+    survived = [rot for o, rot in outcomes if o == jr.Outcome.ROCKING]
+    assert max(survived) > 0.5  # a close call is among them
+
+
+def test_record_with_long_quiet_tail():
+    """A record padded with 30 s of zeros: same answer, and the tail is skipped."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 4.0, 0.01)
+    acc = 6.0 * np.sin(2 * np.pi * 1.2 * t) * np.exp(-0.5 * t) + rng.normal(
+        0, 0.3, t.size
+    )
+    short = jr.Record(acc, 0.01)
+    padded = jr.Record(np.concatenate([acc, np.zeros(3000)]), 0.01)
+    for base in (jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)):
+        a = jr.simulate(jr.Block(4.0, 1.0), base, short, duration=40.0)
+        b = jr.simulate(jr.Block(4.0, 1.0), base, padded, duration=40.0)
+        assert int(a.status) == int(b.status) == jr.Status.SUCCESS
+        assert int(a.outcome) == int(b.outcome) and int(a.impacts) == int(b.impacts)
+        assert float(b.max_rotation) == pytest.approx(float(a.max_rotation), rel=1e-7)
+
+
+def test_naive_fixed_step_baseline_is_wrong_and_default_is_not():
+    """RK4 at a fixed 10 ms step with events at step ends only (the baseline of the
+    work-precision study) misses the impacts that the default locates."""
+    block, base = jr.Block(3.0, 2.0), jr.LinearIsolator(2.0, 0.35, 0.5)
+    duration = jr.SolverOptions().rtol * 0 + float(PULSE.end_time) + 5.0
+    naive = _simulate._run_jit(
+        block, base, PULSE, duration, jr.SolverOptions(step=0.01, solver=RK4())
+    )
+    good = jr.simulate(block, base, PULSE)
+    tight = jr.simulate(block, base, PULSE, rtol=1e-11, atol=1e-13)
+    assert int(good.impacts) == int(tight.impacts)
+    assert float(good.max_rotation) == pytest.approx(
+        float(tight.max_rotation), rel=1e-5
+    )
+    assert abs(float(naive.max_rotation) / float(tight.max_rotation) - 1) > 0.1
+    assert int(naive.impacts) != int(tight.impacts)
+
+
+def test_map_counts_unconverged_cells():
+    bm = jr.behavior_map([3.0, 5.0], [0.5, 1.0], jr.FixedBase(), PULSE, max_segments=3)
+    assert bm.counts()["not_converged"] > 0
+    assert "NOT CONVERGED" in bm.summary()
+    assert np.all(
+        (bm.status == jr.Status.SUCCESS) | (bm.status == jr.Status.MAX_SEGMENTS)
+    )
