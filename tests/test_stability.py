@@ -1,6 +1,5 @@
 """Where numerical methods fail, and how jaxrock detects it (issue #5)."""
 
-import diffrax
 import numpy as np
 import pytest
 import reference as ref
