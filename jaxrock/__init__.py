@@ -13,6 +13,9 @@ jax.config.update("jax_enable_x64", True)
 from . import design as design  # noqa: E402
 from . import io as io  # noqa: E402
 from ._block import Block as Block  # noqa: E402
+from ._fragility import Fragility as Fragility  # noqa: E402
+from ._fragility import fit_lognormal as fit_lognormal
+from ._fragility import fragility as fragility
 from ._ground import (  # noqa: E402
     NEAR_FAULT_PULSES as NEAR_FAULT_PULSES,
 )

@@ -75,6 +75,17 @@ def _parser():
         help="only the chosen base, not the fixed base beside it",
     )
     m.add_argument("--chunk-size", type=int, default=16)
+    f = sub.add_parser("fragility", help="fragility curves over a scaled pulse")
+    common(f)
+    f.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
+    f.add_argument("--size", type=float, default=1.0, help="r (m)")
+    f.add_argument(
+        "--scales",
+        type=_range,
+        default="0.1:2.0:40",
+        help="amplitude scales START:STOP:N (default 0.1:2.0:40)",
+    )
+    f.add_argument("--measure", choices=["pga", "pgv", "pga_ratio"], default="pga")
     s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
     common(s)
     s.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
@@ -118,6 +129,29 @@ def main(argv=None) -> int:
             print(r.summary())
             out = a.out or "response.png"
             plot.response(r).savefig(out, dpi=120)
+            print(f"wrote {out}")
+            return 0
+        if a.command == "fragility":
+            if a.record:
+                raise ValueError("fragility takes a pulse (--pulse), not a record")
+            p = jr.near_fault_pulse(a.pulse, scale=a.scale)
+            motions = jr.MPPulse(a.scales * p.amplitude, p.frequency, p.gamma, p.phase)
+            frag = jr.fragility(
+                a.slenderness, a.size, base, motions, measure=a.measure, progress=False
+            )
+            print(
+                f"{a.scales.size} analyses: {int(frag.rocked.sum())} rocked, "
+                f"{int(frag.overturned.sum())} overturned; median {a.measure} "
+                f"to overturn {frag.median_overturning:.4g} "
+                f"(beta {frag.beta_overturning:.3g})"
+            )
+            out = a.out or "fragility.png"
+            ax = plot.fragility(
+                frag,
+                title=f"{name}, lambda = {a.slenderness:g}, "
+                f"r = {a.size:g} m, {type(base).__name__}",
+            )
+            ax.figure.savefig(out, dpi=120)
             print(f"wrote {out}")
             return 0
         bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]

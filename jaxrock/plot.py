@@ -3,6 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ._fragility import Fragility
 from ._maps import BehaviorMap
 from ._simulate import Outcome, Response
 
@@ -97,3 +98,54 @@ def compare_maps(maps, titles=None):
         behavior_map(m, ax=ax, title=t)
     fig.tight_layout()
     return fig
+
+
+_IM_LABELS = {
+    "pga": "PGA (m/s^2)",
+    "pgv": "PGV (m/s)",
+    "pga_ratio": "PGA / (g tan alpha)",
+}
+
+
+def fragility(frag: Fragility, ax=None, title: str | None = None):
+    """Fragility curves: outcomes as points (0 or 1) and the lognormal fits."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4))
+    im = np.asarray(frag.im)
+    ax.plot(
+        im,
+        frag.rocked + 0.02,
+        "o",
+        color="tab:green",
+        ms=4,
+        alpha=0.6,
+        label="rocked (1) or not (0)",
+    )
+    ax.plot(
+        im,
+        frag.overturned - 0.02,
+        "o",
+        color="tab:red",
+        ms=4,
+        alpha=0.6,
+        label="overturned (1) or not (0)",
+    )
+    grid = np.geomspace(im[im > 0].min() / 1.5, im.max() * 1.5, 300)
+    for which, colour in (("rocking", "tab:green"), ("overturning", "tab:red")):
+        median = getattr(frag, f"median_{which}")
+        if np.isfinite(median):
+            beta = getattr(frag, f"beta_{which}")
+            ax.plot(
+                grid,
+                frag.probability(grid, which),
+                color=colour,
+                label=f"P({which}): median {median:.3g}, beta {beta:.2f}",
+            )
+    ax.set_xscale("log")
+    ax.set_xlabel(_IM_LABELS[frag.measure])
+    ax.set_ylabel("probability")
+    ax.set_ylim(-0.08, 1.08)
+    ax.legend(fontsize=7, loc="center right")
+    if title:
+        ax.set_title(title, fontsize=9)
+    return ax

@@ -1,0 +1,55 @@
+"""Fragility curves: the lognormal maximum-likelihood fit and the ensemble."""
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+import jaxrock as jr
+from jaxrock.cli import main
+
+
+def test_lognormal_fit_recovers_known_parameters():
+    rng = np.random.default_rng(0)
+    im = np.geomspace(0.05, 5.0, 400)
+    failed = rng.random(im.size) < norm.cdf(np.log(im / 0.8) / 0.4)
+    median, beta = jr.fit_lognormal(im, failed)
+    assert median == pytest.approx(0.8, rel=0.1)
+    assert beta == pytest.approx(0.4, rel=0.25)
+
+    # The maximum: no point of a fine grid has a higher likelihood.
+    def loglik(m, b):
+        z = np.log(im / m) / b
+        return np.sum(np.where(failed, norm.logcdf(z), norm.logcdf(-z)))
+
+    best = loglik(median, beta)
+    for m in median * np.array([0.97, 1.03]):
+        for b in beta * np.array([0.95, 1.0, 1.05]):
+            assert loglik(m, b) <= best + 1e-6
+    assert np.isnan(jr.fit_lognormal(im, np.zeros(im.size, bool))[0])
+
+
+def test_fragility_of_a_block_under_scaled_pulse():
+    p = jr.near_fault_pulse("San Fernando PCD/SN")
+    scales = np.linspace(0.1, 2.0, 24)
+    motions = jr.MPPulse(scales * p.amplitude, p.frequency, p.gamma, p.phase)
+    frag = jr.fragility(4.0, 1.0, jr.FixedBase(), motions, measure="pga_ratio")
+    # pga_ratio = PGA / (g tan alpha): the block uplifts exactly where it exceeds 1.
+    np.testing.assert_array_equal(frag.rocked, frag.im > 1.0)
+    assert frag.median_rocking == pytest.approx(1.0, abs=0.1)
+    assert frag.overturned.any() and not frag.overturned.all()
+    assert frag.median_overturning > frag.median_rocking
+    assert np.all(frag.status == jr.Status.SUCCESS)
+    curve = frag.probability(np.array([0.5, 5.0]))
+    assert curve[0] < 0.5 < curve[1]
+
+
+def test_cli_fragility(tmp_path, capsys):
+    out = tmp_path / "f.png"
+    assert (
+        main(
+            ["fragility", "--base", "fixed", "--scales", "0.2:2:12", "--out", str(out)]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 10_000
+    assert "overturned" in capsys.readouterr().out
