@@ -41,7 +41,7 @@ def _peaks(motion: AbstractGroundMotion, samples: int = 20001):
 
 
 def fit_lognormal(im, failed, steps: int = 2000):
-    """Maximum-likelihood lognormal fragility P(failure | IM) = Phi(ln(IM / median) / beta).
+    """Maximum-likelihood lognormal fit, P(failure | IM) = Phi(ln(IM / median) / beta).
 
     `im` > 0 and `failed` (bool) are 1-D. Returns (median, beta); NaN when every
     or no analysis failed (the likelihood has no maximum then).

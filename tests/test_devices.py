@@ -1,0 +1,41 @@
+"""Maps spread their chunks over every local device: same results on two CPU devices."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+import jaxrock as jr
+
+SCRIPT = """
+import json, numpy as np, jax, jaxrock as jr
+bm = jr.behavior_map([2.5, 4.0, 5.5], [0.4, 1.0, 2.0], jr.LinearIsolator(2.0, 0.35, 0.5),
+                     jr.near_fault_pulse("San Fernando PCD/SN"), chunk_size=2)
+print(json.dumps(dict(devices=len(jax.local_devices()), outcome=bm.outcome.tolist(),
+                      rotation=bm.max_rotation.tolist())))
+"""
+
+
+def test_two_cpu_devices_give_the_same_map():
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
+    two = json.loads(out.stdout.strip().splitlines()[-1])
+    assert two["devices"] == 2
+    one = jr.behavior_map(
+        [2.5, 4.0, 5.5],
+        [0.4, 1.0, 2.0],
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        jr.near_fault_pulse("San Fernando PCD/SN"),
+        chunk_size=2,
+    )
+    np.testing.assert_array_equal(np.array(two["outcome"]), one.outcome)
+    np.testing.assert_allclose(np.array(two["rotation"]), one.max_rotation, rtol=1e-12)
