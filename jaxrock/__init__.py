@@ -29,6 +29,9 @@ from ._ground import (
     Record as Record,
 )
 from ._ground import (
+    SinePulse as SinePulse,
+)
+from ._ground import (
     near_fault_pulse as near_fault_pulse,
 )
 from ._isolators import (  # noqa: E402
@@ -66,5 +69,7 @@ from ._simulate import (
 from ._simulate import (
     simulate as simulate,
 )
+from ._spectrum import OverturningSpectrum as OverturningSpectrum  # noqa: E402
+from ._spectrum import overturning_spectrum as overturning_spectrum
 
 __version__ = importlib.metadata.version("jaxrock")

@@ -113,6 +113,43 @@ class MPPulse(AbstractGroundMotion):
         return 1.0 / (32.0 * self.frequency)
 
 
+class SinePulse(AbstractGroundMotion):
+    """One-sine acceleration pulse, x_g'' = a_p sin(2 pi f_p t) for 0 <= t <= 1 / f_p.
+
+    `amplitude` a_p (m/s^2), `frequency` f_p (Hz) > 0: the pulse of the rocking
+    literature's overturning spectra (Makris & Roussos 2000, type A).
+    """
+
+    amplitude: Float[Array, "..."] = eqx.field(converter=as_float)
+    frequency: Float[Array, "..."] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check("amplitude", self.amplitude, lambda v: v == v, "finite")
+        positive("frequency", self.frequency)
+
+    def acceleration(self, t):
+        a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
+        return jnp.where((t >= 0) & (t <= self.end_time), a, 0.0)
+
+    def velocity(self, t):
+        """Ground velocity (m/s); it keeps its final value after the pulse."""
+        w = 2.0 * jnp.pi * self.frequency
+        tc = jnp.clip(t, 0.0, self.end_time)
+        return self.amplitude / w * (1.0 - jnp.cos(w * tc))
+
+    @property
+    def end_time(self):
+        return 1.0 / self.frequency
+
+    @property
+    def step_ts(self):
+        return None
+
+    @property
+    def max_step(self):
+        return 1.0 / (32.0 * self.frequency)
+
+
 class Record(AbstractGroundMotion):
     """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s).
 

@@ -86,6 +86,25 @@ def _parser():
         help="amplitude scales START:STOP:N (default 0.1:2.0:40)",
     )
     f.add_argument("--measure", choices=["pga", "pgv", "pga_ratio"], default="pga")
+    o = sub.add_parser("spectrum", help="overturning spectrum under one-sine pulses")
+    o.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
+    o.add_argument("--size", type=float, default=1.0, help="r (m)")
+    o.add_argument(
+        "--frequency-ratio",
+        type=_range,
+        default="0.5:8:16",
+        help="omega_p / p, START:STOP:N (default 0.5:8:16)",
+    )
+    o.add_argument(
+        "--amplitude-ratio",
+        type=_range,
+        default="1:8:36",
+        help="a_p / (g tan alpha), START:STOP:N (default 1:8:36)",
+    )
+    o.add_argument("--period", type=float, default=2.0, help="T_s (s) of the isolator")
+    o.add_argument("--damping", type=float, default=0.35, help="xi")
+    o.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
+    o.add_argument("--out", default=None, help="output PNG")
     s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
     common(s)
     s.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
@@ -123,6 +142,27 @@ def main(argv=None) -> int:
         import jaxrock as jr
         from jaxrock import plot
 
+        if a.command == "spectrum":
+            block = jr.Block(a.slenderness, a.size)
+            bases = [
+                jr.FixedBase(),
+                jr.LinearIsolator(a.period, a.damping, a.mass_ratio),
+            ]
+            spectra = [
+                jr.overturning_spectrum(
+                    block, b, a.frequency_ratio, a.amplitude_ratio, progress=False
+                )
+                for b in bases
+            ]
+            for s_ in spectra:
+                print(
+                    f"{s_.base}: minimum a_p / (g tan alpha) = "
+                    + " ".join(f"{m:.3g}" for m in s_.minimum)
+                )
+            out = a.out or "spectrum.png"
+            plot.overturning_spectrum(spectra).figure.savefig(out, dpi=120)
+            print(f"wrote {out}")
+            return 0
         motion, base, name = _inputs(a)
         if a.command == "simulate":
             r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)

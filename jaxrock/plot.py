@@ -6,6 +6,7 @@ import numpy as np
 from ._fragility import Fragility
 from ._maps import BehaviorMap
 from ._simulate import Outcome, Response
+from ._spectrum import OverturningSpectrum
 
 _COLOURS = {
     Outcome.NO_ROCKING: ("tab:blue", "No rocking"),
@@ -148,4 +149,34 @@ def fragility(frag: Fragility, ax=None, title: str | None = None):
     ax.legend(fontsize=7, loc="center right")
     if title:
         ax.set_title(title, fontsize=9)
+    return ax
+
+
+def overturning_spectrum(spectra, labels=None, ax=None):
+    """Overturning regions (dots) and their lower edges (lines) over omega_p / p.
+
+    `spectra`: one `OverturningSpectrum` or several (e.g. fixed and isolated).
+    """
+    if isinstance(spectra, OverturningSpectrum):
+        spectra = [spectra]
+    labels = labels or [s.base for s in spectra]
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4.5))
+    for k, (s, label) in enumerate(zip(spectra, labels)):
+        colour = f"C{k}"
+        F, A = np.meshgrid(s.frequency_ratio, s.amplitude_ratio, indexing="ij")
+        over = s.outcome == Outcome.OVERTURNED
+        ax.scatter(F[over], A[over], s=6, color=colour, alpha=0.35)
+        ax.plot(
+            s.frequency_ratio,
+            s.minimum,
+            "-",
+            color=colour,
+            lw=2,
+            label=f"{label}: minimum overturning amplitude",
+        )
+    ax.set_xlabel("omega_p / p")
+    ax.set_ylabel("a_p / (g tan alpha)")
+    ax.set_title("Overturning under a one-sine pulse (dots: overturns)", fontsize=9)
+    ax.legend(fontsize=7)
     return ax
