@@ -11,7 +11,8 @@ import jaxrock as jr
 
 SCRIPT = """
 import json, numpy as np, jax, jaxrock as jr
-bm = jr.behavior_map([2.5, 4.0, 5.5], [0.4, 1.0, 2.0], jr.LinearIsolator(2.0, 0.35, 0.5),
+bm = jr.behavior_map([2.5, 4.0, 5.5], [0.4, 1.0, 2.0],
+                     jr.LinearIsolator(2.0, 0.35, 0.5),
                      jr.near_fault_pulse("San Fernando PCD/SN"), chunk_size=2)
 print(json.dumps(dict(devices=len(jax.local_devices()), outcome=bm.outcome.tolist(),
                       rotation=bm.max_rotation.tolist())))
