@@ -1,0 +1,63 @@
+"""Analyses per second against the number of lanes (1e2 .. 1e5), fixed base.
+
+Random (slenderness, size) cells under the San Fernando PCD/SN pulse, chunks of
+16 lanes; best of --repeats after compilation. Prints a table and writes
+benchmarks/results/scaling.{json,md}. Memory stays bounded: only the results
+(eight numbers a lane) grow with the lanes; the peak resident memory is reported.
+"""
+
+import argparse
+import json
+import resource
+from pathlib import Path
+
+import numpy as np
+
+import jaxrock as jr
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--max-lanes", type=int, default=100_000)
+    p.add_argument("--repeats", type=int, default=2)
+    a = p.parse_args()
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    rng = np.random.default_rng(0)
+    rows = []
+    n = 100
+    jr.behavior_map([2.0, 3.0], [1.0], jr.FixedBase(), pulse, progress=False)
+    while n <= a.max_lanes:
+        # A grid of n cells: sqrt(n) slendernesses x sqrt(n) sizes, jittered.
+        k = int(round(n**0.5))
+        lam = np.sort(rng.uniform(1.0, 7.0, k))
+        size = np.sort(rng.uniform(0.1, 4.0, n // k))
+        best = min(
+            jr.behavior_map(lam, size, jr.FixedBase(), pulse, progress=False).seconds
+            for _ in range(a.repeats)
+        )
+        cells = lam.size * size.size
+        rows.append(
+            dict(
+                lanes=cells,
+                seconds=best,
+                analyses_per_s=cells / best,
+                peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            )
+        )
+        print(rows[-1], flush=True)
+        n *= 10
+    md = ["| lanes | time (s) | analyses/s | peak RSS (MB) |", "|---|---|---|---|"]
+    md += [
+        f"| {r['lanes']} | {r['seconds']:.2f} | {r['analyses_per_s']:.0f} | "
+        f"{r['peak_rss_mb']:.0f} |"
+        for r in rows
+    ]
+    print("\n".join(md))
+    out = Path(__file__).resolve().parent / "results"
+    out.mkdir(exist_ok=True)
+    (out / "scaling.json").write_text(json.dumps(rows, indent=2))
+    (out / "scaling.md").write_text("\n".join(md) + "\n")
+
+
+if __name__ == "__main__":
+    main()
