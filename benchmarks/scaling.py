@@ -25,7 +25,14 @@ def main():
     rng = np.random.default_rng(0)
     rows = []
     n = 100
-    jr.behavior_map([2.0, 3.0], [1.0], jr.FixedBase(), pulse, progress=False)
+    # Warm up (compile) with a full chunk of 16 lanes.
+    jr.behavior_map(
+        np.linspace(2, 6, 4),
+        np.linspace(0.5, 2, 4),
+        jr.FixedBase(),
+        pulse,
+        progress=False,
+    )
     while n <= a.max_lanes:
         # A grid of n cells: sqrt(n) slendernesses x sqrt(n) sizes, jittered.
         k = int(round(n**0.5))
