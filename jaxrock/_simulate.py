@@ -177,6 +177,7 @@ class _Carry(eqx.Module):
     steps: Int[Array, ""]
     done: Bool[Array, ""]
     kind: Int[Array, ""]
+    dt: Float[Array, ""]  # first step of the next segment (s)
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -212,6 +213,7 @@ def _initial_carry(block, base, motion) -> _Carry:
         steps=jnp.asarray(0),
         done=jnp.asarray(False),
         kind=jnp.asarray(EventKind.END),
+        dt=jnp.asarray(1e-3, dtype=zero.dtype),
     )
 
 
@@ -235,7 +237,9 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
             step_ts=motion.step_ts,
             jump_ts=motion.jump_ts,
         )
-        root_finder, dt0 = BracketedNewton(rtol=1e-14, atol=1e-12), None
+        # The first step is the previous segment's mean step (no step-size
+        # selection, which costs two evaluations a segment).
+        root_finder, dt0 = BracketedNewton(rtol=1e-14, atol=1e-12), c.dt
     else:
         controller, root_finder, dt0 = diffrax.ConstantStepSize(), None, opts.step
     event = diffrax.Event(conditions, root_finder=root_finder, direction=False)
@@ -364,6 +368,8 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         segments=c.segments + 1,
         steps=c.steps + sol.stats["num_steps"],
         done=overturn | failed | (reached_end & ~event & (t >= duration)) | still,
+        dt=jnp.where(sol.stats["num_steps"] > 0,
+                     (t - c.t) / jnp.maximum(sol.stats["num_steps"], 1), c.dt),
         kind=kind,
     )
     # A frozen lane keeps its carry.
