@@ -23,9 +23,15 @@ class AbstractGroundMotion(eqx.Module):
         """When the excitation ends (s)."""
 
     @property
-    @abc.abstractmethod
     def step_ts(self) -> Float[Array, " k"] | None:
-        """Kinks of x_g'' (s): the integrator never steps across them."""
+        """Kinks of x_g'' (s): the integrator never steps across them.
+
+        None for the pulses: x_g'' is continuous and its slope has kinks only at
+        the pulse's start (t = 0 by default) and end, where segments stop anyway
+        (a later start is left to the error control, cheaper than clipping every
+        step).
+        """
+        return None
 
     @property
     def jump_ts(self) -> Float[Array, " k"] | None:
@@ -100,13 +106,6 @@ class MPPulse(AbstractGroundMotion):
         return self.t0 + self.half_duration
 
     @property
-    def step_ts(self):
-        # x_g'' is continuous; its slope has kinks at the pulse's start (t = 0 by
-        # default) and end, where segments already stop. A later start is left to
-        # the error control, which is cheaper than clipping every step.
-        return None
-
-    @property
     def max_step(self):
         # x_g'' oscillates at f_p: 32 steps a cycle keep any excursion of |x_g''|
         # beyond a threshold that lies inside one step below 0.5% of its peak.
@@ -140,10 +139,6 @@ class SinePulse(AbstractGroundMotion):
     @property
     def end_time(self):
         return 1.0 / self.frequency
-
-    @property
-    def step_ts(self):
-        return None
 
     @property
     def max_step(self):
