@@ -1,9 +1,11 @@
 """Behavior maps: one analysis per (slenderness, size) cell, vmapped and chunked."""
 
+import hashlib
 import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import diffrax
 import equinox as eqx
@@ -173,6 +175,27 @@ class BehaviorMap(eqx.Module):
         return cls(**arrays, **meta)
 
 
+class _ChunkResult(eqx.Module):
+    """A chunk's results read back from a store (the fields of `Response`)."""
+
+    outcome: np.ndarray
+    max_rotation: np.ndarray
+    max_base_displacement: np.ndarray
+    impacts: np.ndarray
+    uplift_time: np.ndarray
+    status: np.ndarray
+    steps: np.ndarray
+    segments: np.ndarray
+
+
+def _leaf_digest(module) -> str:
+    """A short fingerprint of a module's array leaves (to match a store)."""
+    h = hashlib.sha256()
+    for x in jax.tree_util.tree_leaves(module):
+        h.update(np.ascontiguousarray(np.asarray(x, dtype=float)).tobytes())
+    return h.hexdigest()[:16]
+
+
 def _batch_shape(module) -> tuple[int, ...]:
     leaves = [np.shape(x) for x in jax.tree_util.tree_leaves(module)]
     try:
@@ -205,6 +228,7 @@ def behavior_map(
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
     solver=None,
+    store: str | os.PathLike | None = None,
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
@@ -260,7 +284,50 @@ def behavior_map(
     devices = jax.local_devices()
     shared = [jax.device_put((motion, duration), d) for d in devices]
 
+    if store is not None:
+        store = Path(store)
+        store.mkdir(parents=True, exist_ok=True)
+        key = json.dumps(
+            dict(
+                slenderness=lam.tolist(),
+                size=r.tolist(),
+                base=describe_base(base),
+                motion=describe_motion(motion),
+                base_leaves=_leaf_digest(base),
+                motion_leaves=_leaf_digest(motion),
+                duration=float(duration),
+                chunk=chunk,
+                options=_leaf_digest(opts),
+                solver=repr(opts.solver),
+                max_segments=opts.max_segments,
+            )
+        )
+        manifest = store / "manifest.json"
+        if manifest.exists() and manifest.read_text() != key:
+            raise ValueError(
+                f"`store` {str(store)!r} holds chunks of another map; use a new folder"
+            )
+        manifest.write_text(key)
+
     def run_chunk(k):
+        if store is not None:
+            path = store / f"chunk_{k:06d}.npz"
+            if path.exists():  # finished before an interruption: not recomputed
+                with np.load(path) as f:
+                    return _ChunkResult(**{n: f[n] for n in _FIELDS}), int(
+                        f["executed"]
+                    )
+            out, executed = compute_chunk(k)
+            np.savez(
+                path.with_suffix(".tmp.npz"),
+                executed=executed,
+                **{n: getattr(out, n) for n in _FIELDS},
+            )
+            path.with_suffix(".tmp.npz").replace(path)  # atomic: no half-written chunk
+            return out, executed
+        return compute_chunk(k)
+
+    def compute_chunk(k):
         i, d = starts[k], k % len(devices)
 
         def part(tree):
@@ -271,10 +338,12 @@ def behavior_map(
 
         d_motion, d_duration = shared[d]
         m = d_motion if isinstance(motion, Record) else part(lane_motion)
-        out = _map_chunk(
-            part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts
+        out, executed = jax.device_get(
+            _map_chunk(
+                part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts
+            )
         )
-        return jax.device_get(out)
+        return out, int(executed)
 
     workers = max(len(devices), os.cpu_count() or 1)
     t = time.perf_counter()

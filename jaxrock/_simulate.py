@@ -368,8 +368,11 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         segments=c.segments + 1,
         steps=c.steps + sol.stats["num_steps"],
         done=overturn | failed | (reached_end & ~event & (t >= duration)) | still,
-        dt=jnp.where(sol.stats["num_steps"] > 0,
-                     (t - c.t) / jnp.maximum(sol.stats["num_steps"], 1), c.dt),
+        dt=jnp.where(
+            sol.stats["num_steps"] > 0,
+            (t - c.t) / jnp.maximum(sol.stats["num_steps"], 1),
+            c.dt,
+        ),
         kind=kind,
     )
     # A frozen lane keeps its carry.

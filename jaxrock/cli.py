@@ -75,6 +75,11 @@ def _parser():
         help="only the chosen base, not the fixed base beside it",
     )
     m.add_argument("--chunk-size", type=int, default=16)
+    m.add_argument(
+        "--store",
+        default=None,
+        help="folder for finished chunks: an interrupted map resumes",
+    )
     f = sub.add_parser("fragility", help="fragility curves over a scaled pulse")
     common(f)
     f.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
@@ -197,8 +202,9 @@ def main(argv=None) -> int:
         bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
         maps = []
         for b in bases:
+            store = None if a.store is None else os.path.join(a.store, type(b).__name__)
             bm = jr.behavior_map(
-                a.slenderness, a.size, b, motion, chunk_size=a.chunk_size
+                a.slenderness, a.size, b, motion, chunk_size=a.chunk_size, store=store
             )
             print(bm.summary().replace(bm.motion, name))
             maps.append(bm)

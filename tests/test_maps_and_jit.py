@@ -172,3 +172,33 @@ def test_ensembles_add_leading_axes(linear_map):
     assert bm.outcome.shape == (2, 5, 3)
     np.testing.assert_array_equal(bm.outcome[1], linear_map.outcome)
     assert np.all(bm.outcome[0] <= bm.outcome[1])  # a weaker pulse does no more harm
+
+
+def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    first = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    chunks = sorted(tmp_path.glob("chunk_*.npz"))
+    assert len(chunks) == 4  # 15 cells in chunks of 4
+    chunks[2].unlink()  # as if interrupted before the third chunk was written
+    calls = []
+    original = _maps._map_chunk
+
+    def counting(*args):
+        calls.append(1)
+        return original(*args)
+
+    monkeypatch.setattr(_maps, "_map_chunk", counting)
+    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    assert len(calls) == 1
+    for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
+        np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
+    np.testing.assert_allclose(first.max_rotation, linear_map.max_rotation, rtol=1e-9)
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(
+            LAM,
+            SIZE,
+            jr.LinearIsolator(2.5, 0.35, 0.5),
+            PULSE,
+            chunk_size=4,
+            store=tmp_path,
+        )
