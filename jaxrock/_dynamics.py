@@ -37,6 +37,7 @@ class Args(eqx.Module):
     sign: jnp.ndarray
     max_base_displacement: jnp.ndarray  # running max |u| so far (m)
     ground_still: jnp.ndarray  # the excitation is over (fixed for a segment)
+    theta_ref: jnp.ndarray  # s theta where the rocking phase began (rad)
 
 
 def _geometry(block, theta, s):

@@ -15,8 +15,9 @@ running maximum, so max |u| is an exact extremum, not a sampled one. "quiet"
 (isolated bases only) ends the analysis once the ground is still and the base's
 energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
-Diffrax lets the first condition in PyTree order win when several fire in one
-step, so the physical conditions come before "base".
+"guard" catches a phase begun on the wrong side of a near double root of theta'
+(see `condition_guard`). Diffrax lets the first condition in PyTree order win
+when several fire in one step, so the physical conditions come before "base".
 """
 
 from typing import ClassVar
@@ -81,6 +82,28 @@ def quiet(y, args: Args):
 def condition_quiet(t, y, args: Args, **kwargs):
     del t, kwargs
     return quiet(y, args)
+
+
+# The guard's margin (rad): well above the angle error of a located apex.
+GUARD = 1e-9
+
+
+def condition_guard(t, y, args: Args, **kwargs):
+    """Catches a rocking phase that began on the wrong side of a (near) double root.
+
+    An apex or a reversal located where theta' only touches zero leaves the next
+    phase's derivative condition starting at <= 0, so it could never fire and
+    the block would move the other way unwatched. The guard fires when s theta
+    leaves the angle where the phase began by GUARD in the wrong direction:
+    below it while RISING, above it while FALLING.
+    """
+    del t, kwargs
+    s_theta = args.sign * y[0]
+    return jnp.where(
+        args.phase == Phase.RISING,
+        s_theta - args.theta_ref + GUARD,
+        jnp.where(args.phase == Phase.FALLING, args.theta_ref + GUARD - s_theta, 1.0),
+    )
 
 
 def condition_base(t, y, args: Args, **kwargs):

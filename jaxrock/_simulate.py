@@ -31,6 +31,7 @@ from ._events import (
     condition_a,
     condition_b,
     condition_base,
+    condition_guard,
     condition_quiet,
     quiet,
 )
@@ -65,7 +66,7 @@ class EventKind(IntEnum):
     IMPACT = 3  # impact followed by re-uplift about the other corner
     REST = 4  # impact after which rocking ends (pure translation)
     OVERTURN = 5
-    REVERSAL = 6  # theta' changed sign before reaching theta = 0
+    REVERSAL = 6  # theta' changed sign before reaching theta = 0 (or the guard)
     BASE_PEAK = 7  # a new maximum of |u|
     FAILURE = 8
     QUIET = 9  # ground still and too little energy left to uplift or move further
@@ -178,6 +179,7 @@ class _Carry(eqx.Module):
     done: Bool[Array, ""]
     kind: Int[Array, ""]
     dt: Float[Array, ""]  # first step of the next segment (s)
+    theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -214,14 +216,24 @@ def _initial_carry(block, base, motion) -> _Carry:
         done=jnp.asarray(False),
         kind=jnp.asarray(EventKind.END),
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
+        theta_ref=zero,
     )
 
 
 def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
     active = ~c.done & (c.segments < opts.max_segments)
-    args = Args(block, base, motion, c.phase, c.sign, c.max_u, c.t >= motion.end_time)
-    conditions = (condition_a, condition_b)
+    args = Args(
+        block,
+        base,
+        motion,
+        c.phase,
+        c.sign,
+        c.max_u,
+        c.t >= motion.end_time,
+        c.theta_ref,
+    )
+    conditions = (condition_a, condition_b, condition_guard)
     if not isinstance(base, FixedBase):
         conditions = conditions + (condition_base, condition_quiet)
     # A segment stops at the end of the excitation: the step limit that keeps
@@ -270,9 +282,9 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     reached_end = sol.result == diffrax.RESULTS.successful
     failed = active & ~(event | reached_end)
     mask = [m & event for m in sol.event_mask]
-    hit_a, hit_b = mask[0], mask[1]
-    hit_base = mask[2] if len(mask) > 2 else jnp.asarray(False)
-    hit_quiet = mask[3] if len(mask) > 3 else jnp.asarray(False)
+    hit_a, hit_b, hit_guard = mask[0], mask[1], mask[2]
+    hit_base = mask[3] if len(mask) > 3 else jnp.asarray(False)
+    hit_quiet = mask[4] if len(mask) > 4 else jnp.asarray(False)
     phase, sign = c.phase, c.sign
 
     uplift = (phase == Phase.TRANSLATION) & (hit_a | hit_b)
@@ -280,6 +292,11 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     apex = (phase == Phase.RISING) & hit_b
     hit_ground = (phase == Phase.FALLING) & hit_a
     reversal = (phase == Phase.FALLING) & hit_b
+    # Guard (a phase begun on the wrong side of a near double root): rising
+    # after all, falling after all, or, right after uplift, never really lifted.
+    guard_up = (phase == Phase.FALLING) & hit_guard
+    guard_down = (phase == Phase.RISING) & hit_guard & (c.theta_ref > 0)
+    settled = (phase == Phase.RISING) & hit_guard & (c.theta_ref <= 0)
 
     # Impact map with the rest rule.
     e, _ = restitution(block, base)
@@ -289,11 +306,28 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     theta_dot = jnp.where(hit_ground, post_theta_dot, theta_dot)
     if base_state is not None:
         base_state = jnp.where(hit_ground, post_base, base_state)
-    theta = jnp.where(hit_ground | uplift, 0.0, theta)
+    theta = jnp.where(hit_ground | uplift | settled, 0.0, theta)
+    theta_dot = jnp.where(settled, 0.0, theta_dot)
 
     new_phase = jnp.select(
-        [uplift, apex, hit_ground & ~rest, hit_ground & rest, reversal],
-        [Phase.RISING, Phase.FALLING, Phase.RISING, Phase.TRANSLATION, Phase.RISING],
+        [
+            uplift,
+            apex,
+            hit_ground & ~rest,
+            hit_ground & rest,
+            reversal | guard_up,
+            guard_down,
+            settled,
+        ],
+        [
+            Phase.RISING,
+            Phase.FALLING,
+            Phase.RISING,
+            Phase.TRANSLATION,
+            Phase.RISING,
+            Phase.FALLING,
+            Phase.TRANSLATION,
+        ],
         phase,
     )
     new_sign = jnp.where(uplift, jnp.where(hit_a, 1.0, -1.0), sign)
@@ -314,7 +348,16 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     still = hit_quiet | (
         quiet(
             y,
-            Args(block, base, motion, new_phase, new_sign, max_u, t >= motion.end_time),
+            Args(
+                block,
+                base,
+                motion,
+                new_phase,
+                new_sign,
+                max_u,
+                t >= motion.end_time,
+                c.theta_ref,
+            ),
         )
         <= 0
     )
@@ -336,7 +379,8 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
             hit_ground & ~rest,
             hit_ground & rest,
             overturn,
-            reversal,
+            reversal | guard_up | guard_down,
+            settled,
             hit_base,
             still,
         ],
@@ -348,6 +392,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
             EventKind.REST,
             EventKind.OVERTURN,
             EventKind.REVERSAL,
+            EventKind.REST,
             EventKind.BASE_PEAK,
             EventKind.QUIET,
         ],
@@ -368,6 +413,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         segments=c.segments + 1,
         steps=c.steps + sol.stats["num_steps"],
         done=overturn | failed | (reached_end & ~event & (t >= duration)) | still,
+        theta_ref=new_sign * theta,
         dt=jnp.where(
             sol.stats["num_steps"] > 0,
             (t - c.t) / jnp.maximum(sol.stats["num_steps"], 1),

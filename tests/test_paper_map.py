@@ -54,6 +54,9 @@ def test_random_cells_match_reference(paper_map):
 
 def test_paper_map_has_every_outcome_and_threshold(paper_map):
     assert set(np.unique(paper_map.outcome)) == {0, 1, 2}
+    # No cell rotates past overturning (pi / 2 = pi / (2 alpha) in max_rotation).
+    alpha = np.arctan(1.0 / paper_map.slenderness)[:, None]
+    assert np.all(paper_map.max_rotation <= 0.5 * np.pi / alpha * (1 + 1e-12))
     assert np.all(paper_map.status == jr.Status.SUCCESS)
     # Uplift boundary: no rocking exactly where tan(alpha) >= PGA / g.
     pulse = jr.near_fault_pulse(PULSE)

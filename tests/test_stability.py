@@ -155,3 +155,23 @@ def test_map_counts_unconverged_cells():
     assert np.all(
         (bm.status == jr.Status.SUCCESS) | (bm.status == jr.Status.MAX_SEGMENTS)
     )
+
+
+def test_near_double_root_of_theta_dot_is_caught():
+    """Northridge JFA, linear isolator, lambda = 6, r = 1.1 m: an apex where theta'
+    only touches zero once sent the block past pi/2 unwatched (max rotation 27.7
+    alpha, outcome "rocking") in some batches. The guard condition catches it; the
+    answer no longer depends on the batch and matches the reference."""
+    pulse = jr.near_fault_pulse("Northridge JFA/SN")
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    sizes = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
+    acc, t_end, max_step = ref.mp_pulse(0.87, 0.33, 2.3, 100.0)
+    theirs = ref.simulate(
+        6.0, 1.1, ("linear", 2.0, 0.35, 0.5), acc, t_end + 5.0, max_step
+    )
+    j = int(np.flatnonzero(sizes == 1.1)[0])
+    for chunk in (8, 16, 40):
+        bm = jr.behavior_map([6.0], sizes, base, pulse, chunk_size=chunk)
+        assert bm.outcome[0, j] == theirs["outcome"] == jr.Outcome.OVERTURNED
+        # Never a rotation past overturning in any cell.
+        assert np.all(bm.max_rotation <= 0.5 * np.pi / np.arctan(1 / 6.0) + 1e-9)
