@@ -51,8 +51,13 @@ def fit_lognormal(im, failed, steps: int = 2000):
     positive("im", im)
     if failed.all() or not failed.any():
         return float("nan"), float("nan")
-    x = jnp.log(jnp.asarray(im))
-    y = jnp.asarray(failed, dtype=float)
+    p = _fit(jnp.log(jnp.asarray(im)), jnp.asarray(failed, dtype=float), steps)
+    return float(jnp.exp(p[0])), float(jnp.exp(p[1]))
+
+
+@eqx.filter_jit
+def _fit(x, y, steps):
+    """Adam on (ln median, ln beta) minimising the negative log-likelihood."""
 
     def nll(p):
         z = (x - p[0]) / jnp.exp(p[1])
@@ -61,19 +66,13 @@ def fit_lognormal(im, failed, steps: int = 2000):
     opt = optax.adam(0.05)
     p = jnp.array([jnp.mean(x), jnp.log(0.5)])
 
-    @jax.jit
-    def run(p):
-        def body(carry, _):
-            p, state = carry
-            g = jax.grad(nll)(p)
-            updates, state = opt.update(g, state, p)
-            return (optax.apply_updates(p, updates), state), None
+    def body(carry, _):
+        p, state = carry
+        updates, state = opt.update(jax.grad(nll)(p), state, p)
+        return (optax.apply_updates(p, updates), state), None
 
-        (p, _), _ = jax.lax.scan(body, (p, opt.init(p)), None, length=steps)
-        return p
-
-    p = run(p)
-    return float(jnp.exp(p[0])), float(jnp.exp(p[1]))
+    (p, _), _ = jax.lax.scan(body, (p, opt.init(p)), None, length=steps)
+    return p
 
 
 class Fragility(eqx.Module):

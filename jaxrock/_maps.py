@@ -175,19 +175,6 @@ class BehaviorMap(eqx.Module):
         return cls(**arrays, **meta)
 
 
-class _ChunkResult(eqx.Module):
-    """A chunk's results read back from a store (the fields of `Response`)."""
-
-    outcome: np.ndarray
-    max_rotation: np.ndarray
-    max_base_displacement: np.ndarray
-    impacts: np.ndarray
-    uplift_time: np.ndarray
-    status: np.ndarray
-    steps: np.ndarray
-    segments: np.ndarray
-
-
 def _leaf_digest(module) -> str:
     """A short fingerprint of a module's array leaves (to match a store)."""
     h = hashlib.sha256()
@@ -310,22 +297,17 @@ def behavior_map(
         manifest.write_text(key)
 
     def run_chunk(k):
-        if store is not None:
-            path = store / f"chunk_{k:06d}.npz"
-            if path.exists():  # finished before an interruption: not recomputed
-                with np.load(path) as f:
-                    return _ChunkResult(**{n: f[n] for n in _FIELDS}), int(
-                        f["executed"]
-                    )
-            out, executed = compute_chunk(k)
-            np.savez(
-                path.with_suffix(".tmp.npz"),
-                executed=executed,
-                **{n: getattr(out, n) for n in _FIELDS},
-            )
-            path.with_suffix(".tmp.npz").replace(path)  # atomic: no half-written chunk
-            return out, executed
-        return compute_chunk(k)
+        """A chunk's results: a dict of the `_FIELDS` arrays and "executed"."""
+        if store is None:
+            return compute_chunk(k)
+        path = store / f"chunk_{k:06d}.npz"
+        if path.exists():  # finished before an interruption: not recomputed
+            with np.load(path) as f:
+                return {n: f[n] for n in _FIELDS + ("executed",)}
+        out = compute_chunk(k)
+        np.savez(path.with_suffix(".tmp.npz"), **out)
+        path.with_suffix(".tmp.npz").replace(path)  # atomic: no half-written chunk
+        return out
 
     def compute_chunk(k):
         i, d = starts[k], k % len(devices)
@@ -343,7 +325,9 @@ def behavior_map(
                 part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts
             )
         )
-        return out, int(executed)
+        return {n: np.asarray(getattr(out, n)) for n in _FIELDS} | {
+            "executed": np.asarray(executed)
+        }
 
     workers = max(len(devices), os.cpu_count() or 1)
     t = time.perf_counter()
@@ -362,13 +346,12 @@ def behavior_map(
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - t
-    parts = [out for out, _ in results]
-    executed = sum(int(ex) for _, ex in results)
     fields = {
-        k: np.concatenate([getattr(p, k) for p in parts])[:n].reshape(shape)
-        for k in _FIELDS
+        k: np.concatenate([c[k] for c in results])[:n].reshape(shape) for k in _FIELDS
     }
-    useful = int(np.concatenate([p.steps for p in parts]).sum())
+    # Padding lanes repeat real ones: they count in both sums alike.
+    useful = int(sum(c["steps"].sum() for c in results))
+    executed = int(sum(c["executed"] for c in results))
     return BehaviorMap(
         slenderness=lam,
         size=r,

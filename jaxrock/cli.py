@@ -27,7 +27,27 @@ def _parser():
     p = argparse.ArgumentParser(prog="jaxrock", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
+    def base_options(q):
+        q.add_argument(
+            "--base",
+            choices=["fixed", "linear", "fps"],
+            default="linear",
+            help="base to analyse (default linear; `map` and `spectrum` also draw "
+            "the fixed base beside it, `map` unless --no-compare)",
+        )
+        q.add_argument("--period", type=float, default=2.0, help="T_s (s)")
+        q.add_argument("--damping", type=float, default=0.35, help="xi")
+        q.add_argument("--friction", type=float, default=0.11, help="mu (fps)")
+        q.add_argument("--radius", type=float, default=2.24, help="R (m) (fps)")
+        q.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
+        q.add_argument("--out", default=None, help="output PNG")
+
+    def one_block(q):
+        q.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
+        q.add_argument("--size", type=float, default=1.0, help="r (m)")
+
     def common(q):
+        base_options(q)
         g = q.add_mutually_exclusive_group()
         g.add_argument(
             "--pulse",
@@ -41,19 +61,6 @@ def _parser():
             default=1.0,
             help="amplitude factor of the motion (default 1)",
         )
-        q.add_argument(
-            "--base",
-            choices=["fixed", "linear", "fps"],
-            default="linear",
-            help="base to analyse (default linear; `map` also draws the "
-            "fixed base beside it unless --no-compare)",
-        )
-        q.add_argument("--period", type=float, default=2.0, help="T_s (s)")
-        q.add_argument("--damping", type=float, default=0.35, help="xi")
-        q.add_argument("--friction", type=float, default=0.11, help="mu (fps)")
-        q.add_argument("--radius", type=float, default=2.24, help="R (m) (fps)")
-        q.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
-        q.add_argument("--out", default=None, help="output PNG")
 
     m = sub.add_parser("map", help="behavior map over slenderness and size")
     common(m)
@@ -82,8 +89,7 @@ def _parser():
     )
     f = sub.add_parser("fragility", help="fragility curves over a scaled pulse")
     common(f)
-    f.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
-    f.add_argument("--size", type=float, default=1.0, help="r (m)")
+    one_block(f)
     f.add_argument(
         "--scales",
         type=_range,
@@ -92,8 +98,8 @@ def _parser():
     )
     f.add_argument("--measure", choices=["pga", "pgv", "pga_ratio"], default="pga")
     o = sub.add_parser("spectrum", help="overturning spectrum under one-sine pulses")
-    o.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
-    o.add_argument("--size", type=float, default=1.0, help="r (m)")
+    base_options(o)
+    one_block(o)
     o.add_argument(
         "--frequency-ratio",
         type=_range,
@@ -106,15 +112,20 @@ def _parser():
         default="1:8:36",
         help="a_p / (g tan alpha), START:STOP:N (default 1:8:36)",
     )
-    o.add_argument("--period", type=float, default=2.0, help="T_s (s) of the isolator")
-    o.add_argument("--damping", type=float, default=0.35, help="xi")
-    o.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
-    o.add_argument("--out", default=None, help="output PNG")
     s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
     common(s)
-    s.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
-    s.add_argument("--size", type=float, default=1.0, help="r (m)")
+    one_block(s)
     return p
+
+
+def _base(a):
+    import jaxrock as jr
+
+    if a.base == "fixed":
+        return jr.FixedBase()
+    if a.base == "linear":
+        return jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
+    return jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
 
 
 def _inputs(a):
@@ -129,13 +140,7 @@ def _inputs(a):
     else:
         motion = jr.near_fault_pulse(a.pulse, scale=a.scale)
         name = a.pulse
-    if a.base == "fixed":
-        base = jr.FixedBase()
-    elif a.base == "linear":
-        base = jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
-    else:
-        base = jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
-    return motion, base, name
+    return motion, _base(a), name
 
 
 def main(argv=None) -> int:
@@ -149,10 +154,7 @@ def main(argv=None) -> int:
 
         if a.command == "spectrum":
             block = jr.Block(a.slenderness, a.size)
-            bases = [
-                jr.FixedBase(),
-                jr.LinearIsolator(a.period, a.damping, a.mass_ratio),
-            ]
+            bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
             spectra = [
                 jr.overturning_spectrum(
                     block, b, a.frequency_ratio, a.amplitude_ratio, progress=False

@@ -49,7 +49,7 @@ def response(resp: Response, axes=None):
     if any(k in _MARKERS for k in h.event_kinds):
         axes[2].legend(loc="best", fontsize=8)
     axes[2].set_xlabel("t (s)")
-    axes[0].set_title(resp.summary() if np.ndim(resp.outcome) == 0 else "", fontsize=8)
+    axes[0].set_title(resp.summary(), fontsize=8)
     fig.tight_layout()
     return fig
 
