@@ -108,22 +108,22 @@ def main():
         ]
         runs += [("RK4", dict(step=h, solver=RK4()), h) for h in steps]
         for name, kw, knob in runs:
-            out, seconds = timed(block, base, jr.SolverOptions(**kw))
+            res, seconds = timed(block, base, jr.SolverOptions(**kw))
             row = dict(
                 case=case,
                 solver=name,
                 knob=knob,
                 seconds=seconds,
-                status=jr.Status(int(out.status)).name,
-                steps=int(out.steps),
-                evaluations=int(out.steps) * STAGES[name],
-                outcome_ok=int(out.outcome) == truth["outcome"],
-                impacts_ok=int(out.impacts) == truth["impacts"],
-                rotation_error=rel(float(out.max_rotation), truth["max_rotation"]),
-                uplift_error=abs(float(out.uplift_time) - truth["uplift_time"]),
+                status=jr.Status(int(res.status)).name,
+                steps=int(res.steps),
+                evaluations=int(res.steps) * STAGES[name],
+                outcome_ok=int(res.outcome) == truth["outcome"],
+                impacts_ok=int(res.impacts) == truth["impacts"],
+                rotation_error=rel(float(res.max_rotation), truth["max_rotation"]),
+                uplift_error=abs(float(res.uplift_time) - truth["uplift_time"]),
                 displacement_error=(
                     rel(
-                        float(out.max_base_displacement), truth["max_base_displacement"]
+                        float(res.max_base_displacement), truth["max_base_displacement"]
                     )
                     if truth["max_base_displacement"]
                     else 0.0
