@@ -70,6 +70,9 @@ from ._simulate import (
     simulate as simulate,
 )
 from ._spectrum import OverturningSpectrum as OverturningSpectrum  # noqa: E402
+from ._spectrum import (  # noqa: E402
+    linearized_overturning_amplitude as linearized_overturning_amplitude,
+)
 from ._spectrum import overturning_spectrum as overturning_spectrum
 
 __version__ = importlib.metadata.version("jaxrock")

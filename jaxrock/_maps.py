@@ -201,6 +201,24 @@ def _lanes(module, shape, index):
     )
 
 
+_PEER_TIMEOUT = 3600.0  # s without a new chunk from the other processes
+
+
+def _wait_for(path: Path) -> None:
+    """Wait for another process to write a chunk (while the store keeps growing)."""
+    last, count = time.monotonic(), -1
+    while not path.exists():
+        n = len(list(path.parent.glob("chunk_*.npz")))
+        if n != count:
+            last, count = time.monotonic(), n
+        elif time.monotonic() - last > _PEER_TIMEOUT:
+            raise RuntimeError(
+                f"no new chunk in {path.parent} for {_PEER_TIMEOUT:.0f} s while "
+                f"waiting for {path.name}: has another process stopped?"
+            )
+        time.sleep(0.05)
+
+
 def behavior_map(
     slenderness,
     size,
@@ -227,6 +245,12 @@ def behavior_map(
     waits for its slowest lane, so small chunks waste less); `None` runs all at
     once. `progress` shows a tqdm bar (default: when there is more than one
     chunk). New grids, pulses or isolator parameters reuse the compile.
+
+    `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
+    only the missing chunks). Several processes (`jax.distributed`, one per
+    host) share a map through a `store` on a shared file system: process i
+    computes the chunks k with k % process_count == i and then reads the
+    others' chunks as they appear; every process returns the whole map.
     """
     _check_types(None, base, motion)
     lam = np.atleast_1d(np.asarray(slenderness, dtype=float))
@@ -271,6 +295,12 @@ def behavior_map(
     devices = jax.local_devices()
     shared = [jax.device_put((motion, duration), d) for d in devices]
 
+    processes, me = jax.process_count(), jax.process_index()
+    if processes > 1 and store is None:
+        raise ValueError(
+            f"this is process {me} of {processes} (jax.distributed): pass "
+            "`store=DIR` on a file system all processes share"
+        )
     if store is not None:
         store = Path(store)
         store.mkdir(parents=True, exist_ok=True)
@@ -294,19 +324,24 @@ def behavior_map(
             raise ValueError(
                 f"`store` {str(store)!r} holds chunks of another map; use a new folder"
             )
-        manifest.write_text(key)
+        tmp = manifest.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(key)
+        tmp.replace(manifest)  # atomic: other processes never read half of it
 
     def run_chunk(k):
         """A chunk's results: a dict of the `_FIELDS` arrays and "executed"."""
         if store is None:
             return compute_chunk(k)
         path = store / f"chunk_{k:06d}.npz"
+        if k % processes != me:  # another process's chunk
+            _wait_for(path)
         if path.exists():  # finished before an interruption: not recomputed
             with np.load(path) as f:
                 return {n: f[n] for n in _FIELDS + ("executed",)}
         out = compute_chunk(k)
-        np.savez(path.with_suffix(".tmp.npz"), **out)
-        path.with_suffix(".tmp.npz").replace(path)  # atomic: no half-written chunk
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, **out)
+        tmp.replace(path)  # atomic: no half-written chunk
         return out
 
     def compute_chunk(k):
@@ -337,14 +372,17 @@ def behavior_map(
             from tqdm.auto import tqdm
 
             bar = tqdm(total=len(starts), desc="behavior map", unit="chunk")
-        # The first chunk alone compiles; the others then reuse it.
-        results = [run_chunk(0)]
-        for out in pool.map(run_chunk, range(1, len(starts))):
-            results.append(out)
+        # This process's first chunk alone compiles; the others then reuse it.
+        # Other processes' chunks (read from the store) come last.
+        ks = sorted(range(len(starts)), key=lambda k: (k % processes != me, k))
+        results = {ks[0]: run_chunk(ks[0])}
+        for k, out in zip(ks[1:], pool.map(run_chunk, ks[1:])):
+            results[k] = out
             if bar is not None:
                 bar.update(1 if len(results) > 2 else 2)
         if bar is not None:
             bar.close()
+    results = [results[k] for k in range(len(starts))]
     seconds = time.perf_counter() - t
     fields = {
         k: np.concatenate([c[k] for c in results])[:n].reshape(shape) for k in _FIELDS

@@ -6,7 +6,7 @@ import numpy as np
 from ._fragility import Fragility
 from ._maps import BehaviorMap
 from ._simulate import Outcome, Response
-from ._spectrum import OverturningSpectrum
+from ._spectrum import OverturningSpectrum, linearized_overturning_amplitude
 
 _COLOURS = {
     Outcome.NO_ROCKING: ("tab:blue", "No rocking"),
@@ -152,10 +152,13 @@ def fragility(frag: Fragility, ax=None, title: str | None = None):
     return ax
 
 
-def overturning_spectrum(spectra, labels=None, ax=None):
+def overturning_spectrum(spectra, labels=None, ax=None, linearized=True):
     """Overturning regions (dots) and their lower edges (lines) over omega_p / p.
 
     `spectra`: one `OverturningSpectrum` or several (e.g. fixed and isolated).
+    Filled dots overturn without impact (Makris & Roussos's mode 2), open ones
+    after impacts (mode 1). `linearized` adds the closed-form linearized edge of
+    mode 2 (`linearized_overturning_amplitude`, slender fixed-base blocks).
     """
     if isinstance(spectra, OverturningSpectrum):
         spectra = [spectra]
@@ -166,7 +169,15 @@ def overturning_spectrum(spectra, labels=None, ax=None):
         colour = f"C{k}"
         F, A = np.meshgrid(s.frequency_ratio, s.amplitude_ratio, indexing="ij")
         over = s.outcome == Outcome.OVERTURNED
-        ax.scatter(F[over], A[over], s=6, color=colour, alpha=0.35)
+        for mode, marker in ((s.impacts == 0, "o"), (s.impacts > 0, "x")):
+            ax.scatter(
+                F[over & mode],
+                A[over & mode],
+                s=8,
+                color=colour,
+                marker=marker,
+                alpha=0.35,
+            )
         ax.plot(
             s.frequency_ratio,
             s.minimum,
@@ -175,8 +186,23 @@ def overturning_spectrum(spectra, labels=None, ax=None):
             lw=2,
             label=f"{label}: minimum overturning amplitude",
         )
+    if linearized:
+        xlim, ylim = ax.get_xlim(), ax.get_ylim()
+        w = np.linspace(max(xlim[0], 1e-3), xlim[1], 100)
+        ax.plot(
+            w,
+            linearized_overturning_amplitude(w),
+            "k--",
+            lw=1,
+            label="no impact, linearized (Makris & Roussos)",
+        )
+        ax.set_xlim(xlim)
+        ax.set_ylim(ylim)
     ax.set_xlabel("omega_p / p")
     ax.set_ylabel("a_p / (g tan alpha)")
-    ax.set_title("Overturning under a one-sine pulse (dots: overturns)", fontsize=9)
+    ax.set_title(
+        "Overturning under a one-sine pulse (o: without impact, x: after impacts)",
+        fontsize=9,
+    )
     ax.legend(fontsize=7)
     return ax

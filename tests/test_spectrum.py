@@ -51,6 +51,27 @@ def test_spectrum_shape(fixed_spectrum):
     assert np.all(fixed_spectrum.outcome[:, AMP < 1.0] != jr.Outcome.OVERTURNED)
 
 
+def test_no_impact_edge_tends_to_linearized_closed_form():
+    # Makris & Roussos's mode 2 (overturning without impact), from the closed-form
+    # linearized solution: the exact edge must approach it as alpha -> 0. At
+    # slenderness 20 (alpha = 0.05) 1% above it the block overturns with no
+    # impact, and 1% below it does not.
+    block = jr.Block(20.0, 1.0)
+    ratios = np.array([0.5, 1.0, 2.0, 4.0])
+    psi = jr.linearized_overturning_amplitude(ratios)
+    # Closed-form limits: just above 1 for slow pulses, rising with omega_p / p.
+    assert 1.0 < psi[0] < 1.2 and np.all(np.diff(psi) > 0)
+    factor = np.array([0.99, 1.01])
+    g_alpha = float(block.uplift_acceleration * block.alpha / np.tan(block.alpha))
+    amplitude = psi[:, None] * factor * g_alpha
+    frequency = np.repeat(ratios, 2) * float(block.p) / (2 * math.pi)
+    motions = jr.SinePulse(amplitude.ravel(), frequency)
+    bm = jr.behavior_map([20.0], [1.0], jr.FixedBase(), motions, progress=False)
+    no_impact = (bm.outcome == jr.Outcome.OVERTURNED) & (bm.impacts == 0)
+    assert np.all(bm.status == jr.Status.SUCCESS)
+    assert np.array_equal(no_impact.reshape(4, 2), np.tile([False, True], (4, 1)))
+
+
 def test_cli_spectrum(tmp_path, capsys):
     out = tmp_path / "s.png"
     assert (
