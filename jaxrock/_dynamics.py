@@ -66,7 +66,7 @@ def vector_field(t, y, args: Args):
         return (
             jnp.where(rocking, theta_dot, 0.0),
             jnp.where(rocking, theta_ddot, 0.0),
-            None,
+            base.rates(base_state, jnp.zeros_like(theta)),  # None: no base state
         )
     f = base.force(base_state)
     mu = base.block_mass_fraction
