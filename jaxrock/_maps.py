@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._block import Block
+from ._flat import flat_step
 from ._ground import AbstractGroundMotion, MPPulse, Record
 from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum, LinearIsolator
 from ._misc import as_float, positive
@@ -24,8 +25,6 @@ from ._simulate import (
     _check_types,
     _initial_carry,
     _response,
-    _solve_segment,
-    _transition,
 )
 
 _FIELDS = (
@@ -41,39 +40,76 @@ _FIELDS = (
 
 
 @eqx.filter_jit
-def _map_chunk(slenderness, size, base, motion, duration, opts):
-    """Analyse a chunk of lanes; one compile per base type, motion type and options.
+def _map_chunk(slenderness, size, base, motion, duration, opts, width):
+    """Analyse a chunk of cells on `width` lanes that refill from a queue.
 
     `slenderness`, `size` and every leaf of `base` (and of `motion`, unless it is
-    a `Record`) carry one leading lane axis. This is the batched while loop that
-    `vmap(run)` would make, written out so that it can also count the lane-steps
-    it executes: each iteration advances every lane by one segment and costs the
-    slowest lane's steps times the number of lanes.
+    a `Record`) carry one leading cell axis. A vmapped while loop waits for its
+    slowest lane, so each iteration advances every lane by one bounded piece of
+    a segment (`opts.steps_per_iteration`), and a lane whose analysis is done
+    writes its result and takes the next cell of the queue at once. Returns the
+    responses (one per cell) and the lane-steps executed (each iteration costs
+    the slowest lane's steps times the lanes). One compile per base type, motion
+    type, options, chunk and width.
     """
-    motion_axis = None if isinstance(motion, Record) else 0
-    lanes = (Block(slenderness, size), base, motion)
-    axes = (0, 0, motion_axis)
-    init = jax.vmap(_initial_carry, in_axes=axes)(*lanes)
+    n = slenderness.shape[0]
+    width = min(width, n)
+    record = isinstance(motion, Record)
+    axes = (0, 0, None if record else 0)
 
-    def active(c):
-        return ~c.done & (c.segments < opts.max_segments)
+    def lanes(cell):
+        cell = jnp.minimum(cell, n - 1)
+        take = lambda tree: jax.tree_util.tree_map(lambda x: x[cell], tree)  # noqa: E731
+        return (
+            Block(slenderness[cell], size[cell]),
+            take(base),
+            motion if record else take(motion),
+        )
+
+    def start(cell):
+        c = jax.vmap(_initial_carry, in_axes=axes)(*lanes(cell))
+        return eqx.tree_at(lambda c: c.done, c, cell >= n)  # no cell left: idle
 
     def one(c, block, base, motion):
-        sol = _solve_segment(c, block, base, motion, duration, opts)
-        return _transition(c, sol, block, base, motion, duration, opts), sol.stats[
-            "num_steps"
-        ]
+        new = flat_step(c, block, base, motion, duration, opts)
+        return new, new.steps - c.steps
+
+    def respond(c, block):
+        return _response(c, block, opts)
+
+    cell0 = jnp.arange(width)
+    blocks = lanes(cell0)[0]
+    empty = jax.vmap(respond)(start(cell0), blocks)
+    out = jax.tree_util.tree_map(
+        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), empty
+    )
 
     def body(state):
-        c, executed = state
-        c, steps = jax.vmap(one, in_axes=(0,) + axes)(c, *lanes)
-        return c, executed + jnp.max(steps) * steps.shape[0]
+        c, cell, queue, out, executed = state
+        inputs = lanes(cell)
+        c, steps = jax.vmap(one, in_axes=(0,) + axes)(c, *inputs)
+        executed = executed + jnp.max(steps) * width
+        finished = (cell < n) & ~(~c.done & (c.segments < opts.max_segments))
+        # Results of finished lanes to their cells (other lanes write nowhere).
+        index = jnp.where(finished, cell, n)
+        results = jax.vmap(respond)(c, inputs[0])
+        out = jax.tree_util.tree_map(
+            lambda o, r: o.at[index].set(r, mode="drop"), out, results
+        )
+        # Finished lanes take the next cells of the queue.
+        new_cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
+        new_cell = jnp.where(finished & (new_cell >= n), n, new_cell)
+        fresh = start(new_cell)
+        c = jax.tree_util.tree_map(
+            lambda f, o: jnp.where(finished.reshape((-1,) + (1,) * (o.ndim - 1)), f, o),
+            fresh,
+            c,
+        )
+        return c, new_cell, queue + jnp.sum(finished), out, executed
 
-    carry, executed = jax.lax.while_loop(
-        lambda state: jnp.any(active(state[0])), body, (init, jnp.asarray(0))
-    )
-    response = jax.vmap(lambda c, b: _response(c, b, opts))(carry, lanes[0])
-    return response, executed
+    state = (start(cell0), cell0, jnp.asarray(width), out, jnp.asarray(0))
+    state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), body, state)
+    return state[3], state[4]
 
 
 def _fmt(x) -> str:
@@ -201,6 +237,8 @@ def _lanes(module, shape, index):
     )
 
 
+# Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
+LANES = 64
 _PEER_TIMEOUT = 3600.0  # s without a new chunk from the other processes
 
 
@@ -228,7 +266,7 @@ def behavior_map(
     duration: float | None = None,
     rtol: float = 1e-8,
     atol: float = 1e-10,
-    chunk_size: int | None = 16,
+    chunk_size: int | None = 512,
     progress: bool | None = None,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
@@ -241,10 +279,12 @@ def behavior_map(
     of an `MPPulse` may carry batch axes (an ensemble of isolators or of pulses,
     e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
     then has shape base batch + pulse batch + (n_slenderness, n_size).
-    Lanes run `chunk_size` at a time through one compiled, vmapped loop (which
-    waits for its slowest lane, so small chunks waste less); `None` runs all at
-    once. `progress` shows a tqdm bar (default: when there is more than one
-    chunk). New grids, pulses or isolator parameters reuse the compile.
+    Cells run `chunk_size` at a time (`None`: all at once) through one compiled
+    loop on `LANES` (64) vmapped lanes; each iteration advances every lane by one
+    solver step, and a lane that finishes takes the chunk's next cell (the
+    "flat loop", `_flat.py`). Chunks run one thread per CPU core. `progress`
+    shows a tqdm bar (default: when there is more than one chunk). New grids,
+    pulses or isolator parameters reuse the compile.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
     only the missing chunks). Several processes (`jax.distributed`, one per
@@ -269,7 +309,12 @@ def behavior_map(
     if chunk_size is not None and chunk_size < 1:
         raise ValueError(f"`chunk_size` must be >= 1 or None, got {chunk_size}")
     opts = SolverOptions(
-        rtol, atol, 16384, max_segments, rest_tolerance, solver or diffrax.Tsit5()
+        rtol,
+        atol,
+        16384,
+        max_segments,
+        rest_tolerance,
+        solver or diffrax.Tsit5(),
     )
 
     shape = base_shape + motion_shape + (lam.size, r.size)
@@ -357,7 +402,13 @@ def behavior_map(
         m = d_motion if isinstance(motion, Record) else part(lane_motion)
         out, executed = jax.device_get(
             _map_chunk(
-                part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts
+                part(lane_lam),
+                part(lane_r),
+                part(lane_base),
+                m,
+                d_duration,
+                opts,
+                LANES,
             )
         )
         return {n: np.asarray(getattr(out, n)) for n in _FIELDS} | {

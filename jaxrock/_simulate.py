@@ -81,6 +81,7 @@ class SolverOptions(eqx.Module):
     located at step ends only (no root find), the naive baseline of the
     work-precision study. `max_steps`: step limit of one segment.
     `max_segments`: limit on the segments (events) of one analysis.
+
     `rest_tolerance`: the rest rule against Zeno chattering: rocking ends at an
     impact when the rebound could lift the block by less than
     `rest_tolerance * alpha`, estimated as theta'+^2 / (2 p^2 sin alpha) (free
@@ -176,6 +177,7 @@ class _Carry(eqx.Module):
     status: Int[Array, ""]
     segments: Int[Array, ""]
     steps: Int[Array, ""]
+    segment_steps: Int[Array, ""]  # steps of the current segment so far
     done: Bool[Array, ""]
     kind: Int[Array, ""]
     dt: Float[Array, ""]  # first step of the next segment (s)
@@ -213,11 +215,20 @@ def _initial_carry(block, base, motion) -> _Carry:
         status=jnp.asarray(Status.SUCCESS),
         segments=jnp.asarray(0),
         steps=jnp.asarray(0),
+        segment_steps=jnp.asarray(0),
         done=jnp.asarray(False),
         kind=jnp.asarray(EventKind.END),
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
         theta_ref=zero,
     )
+
+
+def _segment_end(c: _Carry, motion, duration):
+    """(shaking, end of the segment): a segment stops at the end of the
+    excitation (the step limit that keeps uplifts from hiding inside a step is
+    needed only while the ground moves), else at `duration`."""
+    shaking = c.t < motion.end_time
+    return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
 
 
 def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
@@ -236,10 +247,7 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     conditions = (condition_a, condition_b, condition_guard)
     if not isinstance(base, FixedBase):
         conditions = conditions + (condition_base, condition_quiet)
-    # A segment stops at the end of the excitation: the step limit that keeps
-    # uplifts from hiding inside a step is needed only while the ground moves.
-    shaking = c.t < motion.end_time
-    t_stop = jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
+    shaking, t_stop = _segment_end(c, motion, duration)
     if opts.step is None:
         max_step = motion.max_step
         controller = diffrax.PIDController(
@@ -280,7 +288,13 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     theta, theta_dot, base_state = jax.tree_util.tree_map(lambda x: x[-1], sol.ys)
     event = sol.result == diffrax.RESULTS.event_occurred
     reached_end = sol.result == diffrax.RESULTS.successful
-    failed = active & ~(event | reached_end)
+    # A step that ends before the segment's end (the flat loop of maps) only
+    # moves the state on.
+    cut = reached_end & (t < _segment_end(c, motion, duration)[1])
+    segment_steps = c.segment_steps + sol.stats["num_steps"]
+    too_long = segment_steps >= opts.max_steps
+    failed = active & (~(event | reached_end) | too_long)
+    reached_end = reached_end & ~cut
     mask = [m & event for m in sol.event_mask]
     hit_a, hit_b, hit_guard = mask[0], mask[1], mask[2]
     hit_base = mask[3] if len(mask) > 3 else jnp.asarray(False)
@@ -365,7 +379,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     status = jnp.where(
         failed,
         jnp.where(
-            sol.result == diffrax.RESULTS.max_steps_reached,
+            (sol.result == diffrax.RESULTS.max_steps_reached) | too_long,
             Status.MAX_STEPS,
             Status.SOLVER_FAILED,
         ),
@@ -410,10 +424,11 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         rocked=c.rocked | started,
         overturned=c.overturned | overturn,
         status=status,
-        segments=c.segments + 1,
+        segments=c.segments + jnp.where(cut, 0, 1),
         steps=c.steps + sol.stats["num_steps"],
+        segment_steps=jnp.where(cut, segment_steps, 0),
         done=overturn | failed | (reached_end & ~event & (t >= duration)) | still,
-        theta_ref=new_sign * theta,
+        theta_ref=jnp.where(cut, c.theta_ref, new_sign * theta),
         dt=jnp.where(
             sol.stats["num_steps"] > 0,
             (t - c.t) / jnp.maximum(sol.stats["num_steps"], 1),

@@ -48,10 +48,11 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             one = jr.simulate(jr.Block(lam, r), base, PULSE)
             assert linear_map.outcome[i, j] == int(one.outcome)
             assert linear_map.impacts[i, j] == int(one.impacts)
-            # Batched and single-lane XLA code round differently in the last
-            # bits; rocking amplifies that to about 1e-11.
+            # Maps run the flat loop (one step per iteration), `simulate` one
+            # solve per segment: two step sequences at rtol 1e-8 (observed
+            # differences up to 2e-8).
             np.testing.assert_allclose(
-                linear_map.max_rotation[i, j], float(one.max_rotation), rtol=1e-9
+                linear_map.max_rotation[i, j], float(one.max_rotation), rtol=1e-6
             )
     # The grid holds every outcome, so the comparison means something.
     assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
