@@ -44,13 +44,12 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, width):
     """Analyse a chunk of cells on `width` lanes that refill from a queue.
 
     `slenderness`, `size` and every leaf of `base` (and of `motion`, unless it is
-    a `Record`) carry one leading cell axis. A vmapped while loop waits for its
-    slowest lane, so each iteration advances every lane by one bounded piece of
-    a segment (`opts.steps_per_iteration`), and a lane whose analysis is done
-    writes its result and takes the next cell of the queue at once. Returns the
-    responses (one per cell) and the lane-steps executed (each iteration costs
-    the slowest lane's steps times the lanes). One compile per base type, motion
-    type, options, chunk and width.
+    a `Record`) carry one leading cell axis. Each iteration of the vmapped loop
+    advances every lane by one step attempt (`flat_step`); a lane whose analysis
+    is done writes its result and takes the chunk's next cell at once, so lanes
+    wait for each other only at the chunk's end. Returns the responses (one per
+    cell) and the lane-steps executed (iterations times lanes). One compile per
+    base type, motion type, options, chunk and width.
     """
     n = slenderness.shape[0]
     width = min(width, n)

@@ -292,7 +292,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     # moves the state on.
     cut = reached_end & (t < _segment_end(c, motion, duration)[1])
     segment_steps = c.segment_steps + sol.stats["num_steps"]
-    too_long = segment_steps >= opts.max_steps
+    too_long = segment_steps > opts.max_steps
     failed = active & (~(event | reached_end) | too_long)
     reached_end = reached_end & ~cut
     mask = [m & event for m in sol.event_mask]
