@@ -115,20 +115,16 @@ def flat_step(c, block, base, motion, duration, opts):
         event, t0 + (t1 - t0) * g0 / jnp.where(g0 - g1 == 0, 1.0, g0 - g1), t1
     )
     t = jnp.clip(t, t0, t1)
-    done = ~event
     for _ in range(_NEWTON):
         value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
         positive = value > 0
         lower = jnp.where(positive, t, lower)
         upper = jnp.where(positive, upper, t)
         newton = t - value / jnp.where(slope == 0, 1.0, slope)
+        # Inclusive bounds: a converged Newton step (t itself) stays put.
         inside = (slope != 0) & (newton >= lower) & (newton <= upper)
         inside = inside & jnp.isfinite(newton)
-        candidate = jnp.where(inside, newton, 0.5 * (lower + upper))
-        # Converged (a Newton step below 1e-12 s + 1e-14 t): stay there.
-        small = inside & (jnp.abs(newton - t) <= 1e-12 + 1e-14 * jnp.abs(t))
-        t = jnp.where(done | (value == 0), t, candidate)
-        done = done | small | (value == 0)
+        t = jnp.where(value == 0, t, jnp.where(inside, newton, 0.5 * (lower + upper)))
     t_end = jnp.where(event, t, jnp.where(keep, t1, t0))
     y_end = jax.tree_util.tree_map(
         lambda a, b, e: jnp.where(event, e, jnp.where(keep, a, b)),

@@ -265,7 +265,7 @@ def behavior_map(
     duration: float | None = None,
     rtol: float = 1e-8,
     atol: float = 1e-10,
-    chunk_size: int | None = 512,
+    chunk_size: int | None = 610,
     progress: bool | None = None,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
