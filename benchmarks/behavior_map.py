@@ -42,7 +42,7 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--sample", type=int, default=40)
     p.add_argument("--bases", default="fixed,linear,fps")
-    p.add_argument("--chunk-size", type=int, default=512)
+    p.add_argument("--chunk-size", type=int, default=610)
     p.add_argument("--rtol", type=float, default=1e-8)
     a = p.parse_args()
     lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)

@@ -13,6 +13,7 @@ exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
 
 import diffrax
 import equinox as eqx
+import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 
@@ -94,8 +95,9 @@ def flat_step(c, block, base, motion, duration, opts):
     )
     # Events: the first condition (in order) that goes from > 0 to <= 0.
     fired, earlier = [], jnp.asarray(False)
-    for cond in conditions:
-        v0, v1 = cond(t0, y0, args), cond(t1, y1, args)
+    v0s = [cond(t0, y0, args) for cond in conditions]
+    v1s = [cond(t1, y1, args) for cond in conditions]
+    for v0, v1 in zip(v0s, v1s):
         hit = keep & (v0 > 0) & (v1 <= 0) & ~earlier
         fired.append(hit)
         earlier = earlier | hit
@@ -108,29 +110,31 @@ def flat_step(c, block, base, motion, duration, opts):
             jnp.where(h, cond(t, y, args), 0.0) for h, cond in zip(fired, conditions)
         )
 
-    # Bracketed Newton on [t0, t1]: g > 0 at t0, <= 0 at t1.
-    lower, upper = t0, t1
-    g0, g1 = g(t0), g(t1)
-    t = jnp.where(
-        event, t0 + (t1 - t0) * g0 / jnp.where(g0 - g1 == 0, 1.0, g0 - g1), t1
-    )
-    t = jnp.clip(t, t0, t1)
-    for _ in range(_NEWTON):
-        value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
-        positive = value > 0
-        lower = jnp.where(positive, t, lower)
-        upper = jnp.where(positive, upper, t)
-        newton = t - value / jnp.where(slope == 0, 1.0, slope)
-        # Inclusive bounds: a converged Newton step (t itself) stays put.
-        inside = (slope != 0) & (newton >= lower) & (newton <= upper)
-        inside = inside & jnp.isfinite(newton)
-        t = jnp.where(value == 0, t, jnp.where(inside, newton, 0.5 * (lower + upper)))
-    t_end = jnp.where(event, t, jnp.where(keep, t1, t0))
+    def locate():
+        """Bracketed Newton on [t0, t1] (g > 0 at t0, <= 0 at t1) from the secant."""
+        g0 = sum(jnp.where(h, v, 0.0) for h, v in zip(fired, v0s))
+        g1 = sum(jnp.where(h, v, 0.0) for h, v in zip(fired, v1s))
+        lower, upper = t0, t1
+        t = t0 + (t1 - t0) * g0 / jnp.where(g0 - g1 == 0, 1.0, g0 - g1)
+        t = jnp.clip(jnp.where(event, t, t1), t0, t1)
+        for _ in range(_NEWTON):
+            value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
+            positive = value > 0
+            lower = jnp.where(positive, t, lower)
+            upper = jnp.where(positive, upper, t)
+            newton = t - value / jnp.where(slope == 0, 1.0, slope)
+            # Inclusive bounds: a converged Newton step (t itself) stays put.
+            inside = (slope != 0) & (newton >= lower) & (newton <= upper)
+            inside = inside & jnp.isfinite(newton)
+            bisect = 0.5 * (lower + upper)
+            t = jnp.where(value == 0, t, jnp.where(inside, newton, bisect))
+        return t, interp.evaluate(t)
+
+    # Most iterations see no event in any lane: skip the root find then.
+    t_event, y_event = jax.lax.cond(eqxi.unvmap_any(event), locate, lambda: (t1, y1))
+    t_end = jnp.where(event, t_event, jnp.where(keep, t1, t0))
     y_end = jax.tree_util.tree_map(
-        lambda a, b, e: jnp.where(event, e, jnp.where(keep, a, b)),
-        y1,
-        y0,
-        interp.evaluate(t),
+        lambda a, b, e: jnp.where(event, e, jnp.where(keep, a, b)), y1, y0, y_event
     )
     result = diffrax.RESULTS.where(
         event, diffrax.RESULTS.event_occurred, diffrax.RESULTS.successful

@@ -81,7 +81,7 @@ def _parser():
         action="store_true",
         help="only the chosen base, not the fixed base beside it",
     )
-    m.add_argument("--chunk-size", type=int, default=512)
+    m.add_argument("--chunk-size", type=int, default=610)
     m.add_argument(
         "--store",
         default=None,
