@@ -17,16 +17,8 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 
-from ._dynamics import Args, vector_field
-from ._events import (
-    condition_a,
-    condition_b,
-    condition_base,
-    condition_guard,
-    condition_quiet,
-)
-from ._isolators import FixedBase
-from ._simulate import _segment_end, _transition
+from ._dynamics import vector_field
+from ._simulate import _setup, _transition
 
 # Newton iterations of an event's root find (kept in a bracket): from the secant
 # guess they reach the root to rounding in 3-5.
@@ -55,30 +47,10 @@ class _StepSolution:
 
 def flat_step(c, block, base, motion, duration, opts):
     """One step attempt of one lane; returns the new carry (as `_transition`)."""
-    active = ~c.done & (c.segments < opts.max_segments)
-    args = Args(
-        block,
-        base,
-        motion,
-        c.phase,
-        c.sign,
-        c.max_u,
-        c.t >= motion.end_time,
-        c.theta_ref,
+    active, args, conditions, t_stop, controller = _setup(
+        c, block, base, motion, duration, opts
     )
-    conditions = (condition_a, condition_b, condition_guard)
-    if not isinstance(base, FixedBase):
-        conditions = conditions + (condition_base, condition_quiet)
-    shaking, t_stop = _segment_end(c, motion, duration)
-    max_step = motion.max_step
-    dtmax = jnp.inf if max_step is None else jnp.where(shaking, max_step, jnp.inf)
-    controller = diffrax.PIDController(
-        rtol=opts.rtol,
-        atol=opts.atol,
-        dtmax=dtmax,
-        step_ts=motion.step_ts,
-        jump_ts=motion.jump_ts,
-    )
+    dtmax = jnp.inf if controller.dtmax is None else controller.dtmax
     term = diffrax.ODETerm(vector_field)
     solver = opts.solver
     t0, y0 = c.t, c.y

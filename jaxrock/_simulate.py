@@ -231,8 +231,10 @@ def _segment_end(c: _Carry, motion, duration):
     return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
 
 
-def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
-    """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
+def _setup(c: _Carry, block, base, motion, duration, opts):
+    """What a segment (or a step of the flat loop) starts from: whether the lane
+    is active, the vector field's arguments, the event conditions, the end of
+    the segment and the step-size controller."""
     active = ~c.done & (c.segments < opts.max_segments)
     args = Args(
         block,
@@ -248,15 +250,23 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     if not isinstance(base, FixedBase):
         conditions = conditions + (condition_base, condition_quiet)
     shaking, t_stop = _segment_end(c, motion, duration)
+    max_step = motion.max_step
+    controller = diffrax.PIDController(
+        rtol=opts.rtol,
+        atol=opts.atol,
+        dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
+        step_ts=motion.step_ts,
+        jump_ts=motion.jump_ts,
+    )
+    return active, args, conditions, t_stop, controller
+
+
+def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
+    """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
+    active, args, conditions, t_stop, controller = _setup(
+        c, block, base, motion, duration, opts
+    )
     if opts.step is None:
-        max_step = motion.max_step
-        controller = diffrax.PIDController(
-            rtol=opts.rtol,
-            atol=opts.atol,
-            dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
-            step_ts=motion.step_ts,
-            jump_ts=motion.jump_ts,
-        )
         # The first step is the previous segment's mean step (no step-size
         # selection, which costs two evaluations a segment).
         root_finder, dt0 = BracketedNewton(rtol=1e-14, atol=1e-12), c.dt

@@ -22,7 +22,19 @@ print(json.dumps(dict(devices=len(jax.local_devices()), outcome=bm.outcome.tolis
 """
 
 
-def test_two_cpu_devices_give_the_same_map():
+@pytest.fixture(scope="module")
+def one():
+    """The map of the scripts below, on this process's one device."""
+    return jr.behavior_map(
+        [2.5, 4.0, 5.5],
+        [0.4, 1.0, 2.0],
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        jr.near_fault_pulse("San Fernando PCD/SN"),
+        chunk_size=2,
+    )
+
+
+def test_two_cpu_devices_give_the_same_map(one):
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
     out = subprocess.run(
         [sys.executable, "-c", SCRIPT],
@@ -34,13 +46,6 @@ def test_two_cpu_devices_give_the_same_map():
     )
     two = json.loads(out.stdout.strip().splitlines()[-1])
     assert two["devices"] == 2
-    one = jr.behavior_map(
-        [2.5, 4.0, 5.5],
-        [0.4, 1.0, 2.0],
-        jr.LinearIsolator(2.0, 0.35, 0.5),
-        jr.near_fault_pulse("San Fernando PCD/SN"),
-        chunk_size=2,
-    )
     np.testing.assert_array_equal(np.array(two["outcome"]), one.outcome)
     np.testing.assert_allclose(np.array(two["rotation"]), one.max_rotation, rtol=1e-12)
 
@@ -64,7 +69,7 @@ jax.distributed.shutdown()
 """
 
 
-def test_two_processes_share_a_map_through_the_store(tmp_path):
+def test_two_processes_share_a_map_through_the_store(tmp_path, one):
     # Two processes on this machine stand in for two hosts (jax.distributed).
     with socket.socket() as s:
         s.bind(("localhost", 0))
@@ -83,13 +88,6 @@ def test_two_processes_share_a_map_through_the_store(tmp_path):
     results = [json.loads(out.strip().splitlines()[-1]) for out, _ in outs]
     # Chunks 0, 2, 4 fall to process 0 and 1, 3 to process 1.
     assert sorted((r["process"], r["computed"]) for r in results) == [(0, 3), (1, 2)]
-    one = jr.behavior_map(
-        [2.5, 4.0, 5.5],
-        [0.4, 1.0, 2.0],
-        jr.LinearIsolator(2.0, 0.35, 0.5),
-        jr.near_fault_pulse("San Fernando PCD/SN"),
-        chunk_size=2,
-    )
     for r in results:  # every process holds the whole map
         np.testing.assert_array_equal(np.array(r["outcome"]), one.outcome)
         np.testing.assert_allclose(
