@@ -30,12 +30,13 @@ from ._simulate import Outcome, Response, SolverOptions, run
 
 def _lanes(blocks: Block, motions: AbstractGroundMotion):
     """Every (block, motion) pair as one lane: leaves of shape (n_blocks n_motions,)."""
-    nb = np.size(np.broadcast_arrays(blocks.slenderness, blocks.size)[0])
+    shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
+    nb = int(np.prod(shape))
     leaves = jax.tree_util.tree_leaves(motions)
     nm = (
         1
         if isinstance(motions, Record)
-        else max([int(np.size(x)) for x in leaves] + [1])
+        else max([int(jnp.size(x)) for x in leaves] + [1])
     )
 
     def tile_blocks(x):
@@ -118,6 +119,25 @@ class DesignResult(eqx.Module):
     best: dict
 
 
+@eqx.filter_jit
+def _value_and_grad(make_base, x, lo, width, blocks, motions, capacity, penalty, opts):
+    """Objective, its forward-mode gradient in x = (p - low) / width, responses.
+
+    Module-level, so a second `tune_isolator` with the same `make_base` (and
+    shapes) reuses the compile; `capacity` and `penalty` are traced.
+    """
+    objective = isolator_objective(
+        make_base, blocks, motions, capacity=capacity, penalty=penalty, opts=opts
+    )
+
+    def with_aux(x):
+        value, r = objective({k: lo[k] + width[k] * x[k] for k in x})
+        return value, (value, r)
+
+    grad, (value, r) = jax.jacfwd(with_aux, has_aux=True)(x)
+    return value, grad, r
+
+
 def tune_isolator(
     make_base: Callable[[dict], AbstractIsolator],
     init: dict,
@@ -140,7 +160,8 @@ def tune_isolator(
     each name to (low, high), enforced by projection after every update. The
     default optimiser is Adam on parameters scaled by their bounds' width, so one
     learning rate suits seconds and damping ratios alike. Gradients are forward
-    mode through the whole simulation (one compile).
+    mode through the whole simulation (one compile per `make_base` function and
+    shapes: calling again with the same `make_base` reuses it).
     """
     names = sorted(init)
     if set(bounds) != set(names):
@@ -154,22 +175,18 @@ def tune_isolator(
     lo = {k: float(bounds[k][0]) for k in names}
     width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
     opts = SolverOptions(rtol=rtol, atol=atol)
-    objective = isolator_objective(
-        make_base, blocks, motions, capacity=capacity, penalty=penalty, opts=opts
+    problem = (
+        {k: jnp.asarray(v) for k, v in lo.items()},
+        {k: jnp.asarray(v) for k, v in width.items()},
+        blocks,
+        motions,
+        jnp.asarray(capacity, dtype=float),
+        jnp.asarray(penalty, dtype=float),
+        opts,
     )
 
-    # Optimise x = (p - low) / width in [0, 1].
-    def scaled(x):
-        return objective({k: lo[k] + width[k] * x[k] for k in names})
-
-    @eqx.filter_jit
     def value_and_grad(x):
-        def with_aux(x):
-            value, r = scaled(x)
-            return value, (value, r)
-
-        grad, (value, r) = jax.jacfwd(with_aux, has_aux=True)(x)
-        return value, grad, r
+        return _value_and_grad(make_base, x, *problem)
 
     optimizer = optimizer or optax.adam(learning_rate)
     x = {k: jnp.asarray((init[k] - lo[k]) / width[k]) for k in names}

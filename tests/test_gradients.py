@@ -88,14 +88,33 @@ def test_tune_isolator_lowers_objective_within_bounds():
         jnp.array([180.0, 100.0]),
     )
     bounds = {"period": (1.0, 4.0), "damping": (0.05, 0.6)}
+    traces = []
+
+    def linear(p):  # runs only while tracing
+        traces.append(1)
+        return jr.LinearIsolator(p["period"], p["damping"], 0.5)
+
     res = jr.design.tune_isolator(
-        lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
+        linear,
         {"period": 2.0, "damping": 0.35},
         blocks,
         motions,
         bounds=bounds,
         steps=4,
     )
+    # A second optimisation with the same `make_base` (other start, bounds and
+    # capacity) reuses the compile.
+    n = len(traces)
+    jr.design.tune_isolator(
+        linear,
+        {"period": 3.0, "damping": 0.2},
+        blocks,
+        motions,
+        bounds={"period": (1.5, 3.5), "damping": (0.1, 0.5)},
+        capacity=0.25,
+        steps=1,
+    )
+    assert n >= 1 and len(traces) == n
     assert res.objective.shape == (5,)
     assert res.objective.min() < res.objective[0]
     for k, (lo, hi) in bounds.items():
