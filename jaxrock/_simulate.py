@@ -81,7 +81,6 @@ class SolverOptions(eqx.Module):
     located at step ends only (no root find), the naive baseline of the
     work-precision study. `max_steps`: step limit of one segment.
     `max_segments`: limit on the segments (events) of one analysis.
-
     `rest_tolerance`: the rest rule against Zeno chattering: rocking ends at an
     impact when the rebound could lift the block by less than
     `rest_tolerance * alpha`, estimated as theta'+^2 / (2 p^2 sin alpha) (free
@@ -180,7 +179,7 @@ class _Carry(eqx.Module):
     segment_steps: Int[Array, ""]  # steps of the current segment so far
     done: Bool[Array, ""]
     kind: Int[Array, ""]
-    dt: Float[Array, ""]  # first step of the next segment (s)
+    dt: Float[Array, ""]  # next step (s): a segment's first, or the flat loop's next
     theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
 
 
