@@ -48,10 +48,10 @@ class _StepSolution:
 
 def flat_step(c, block, base, motion, duration, opts):
     """One step attempt of one lane; returns the new carry (as `_transition`)."""
-    active, args, conditions, t_stop, controller = _setup(
+    active, args, conditions, t_stop, dtmax, controller = _setup(
         c, block, base, motion, duration, opts
     )
-    dtmax = jnp.inf if controller.dtmax is None else controller.dtmax
+    dtmax = jnp.inf if dtmax is None else dtmax
     term = diffrax.ODETerm(vector_field)
     solver = opts.solver
     t0, y0 = c.t, c.y

@@ -233,7 +233,7 @@ def _segment_end(c: _Carry, motion, duration):
 def _setup(c: _Carry, block, base, motion, duration, opts):
     """What a segment (or a step of the flat loop) starts from: whether the lane
     is active, the vector field's arguments, the event conditions, the end of
-    the segment and the step-size controller."""
+    the segment, the largest step (None: no limit) and the step-size controller."""
     active = ~c.done & (c.segments < opts.max_segments)
     args = Args(
         block,
@@ -250,19 +250,20 @@ def _setup(c: _Carry, block, base, motion, duration, opts):
         conditions = conditions + (condition_base, condition_quiet)
     shaking, t_stop = _segment_end(c, motion, duration)
     max_step = motion.max_step
+    dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = diffrax.PIDController(
         rtol=opts.rtol,
         atol=opts.atol,
-        dtmax=None if max_step is None else jnp.where(shaking, max_step, jnp.inf),
+        dtmax=dtmax,
         step_ts=motion.step_ts,
         jump_ts=motion.jump_ts,
     )
-    return active, args, conditions, t_stop, controller
+    return active, args, conditions, t_stop, dtmax, controller
 
 
 def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     """Integrate from c.t to the next event (or `duration`): a Diffrax solution."""
-    active, args, conditions, t_stop, controller = _setup(
+    active, args, conditions, t_stop, _, controller = _setup(
         c, block, base, motion, duration, opts
     )
     if opts.step is None:

@@ -128,6 +128,16 @@ def test_record_with_long_quiet_tail():
         assert int(a.status) == int(b.status) == jr.Status.SUCCESS
         assert int(a.outcome) == int(b.outcome) and int(a.impacts) == int(b.impacts)
         assert float(b.max_rotation) == pytest.approx(float(a.max_rotation), rel=1e-7)
+    # A map over a record (the flat loop never steps across a sample) agrees
+    # with `simulate` (one solve per segment), cell by cell.
+    lam, size, base = [2.5, 4.0], [0.5, 1.5], jr.LinearIsolator(2.0, 0.35, 0.5)
+    bm = jr.behavior_map(lam, size, base, short, duration=10.0)
+    for i, j in np.ndindex(2, 2):
+        one = jr.simulate(jr.Block(lam[i], size[j]), base, short, duration=10.0)
+        assert bm.outcome[i, j] == int(one.outcome)
+        assert bm.impacts[i, j] == int(one.impacts)
+        assert bm.max_rotation[i, j] == pytest.approx(float(one.max_rotation), rel=1e-6)
+    assert set(bm.outcome.ravel()) >= {jr.Outcome.NO_ROCKING, jr.Outcome.ROCKING}
 
 
 def test_naive_fixed_step_baseline_is_wrong_and_default_is_not():
