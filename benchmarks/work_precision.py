@@ -218,9 +218,17 @@ def plots(rows, map_rows, out):
         ax.semilogx(
             [r["seconds"] for r in rs],
             [r["agreement"] for r in rs],
-            "o-",
-            label=f"{key} (Tsit5, rtol 1e-3 .. 1e-11)",
+            "o",
+            label=f"{key} (Tsit5; labels: log10 rtol)",
         )
+        for r in rs:
+            ax.annotate(
+                f"{np.log10(r['knob']):.0f}",
+                (r["seconds"], r["agreement"]),
+                fontsize=7,
+                xytext=(2, 4 if key == "fixed" else -9),
+                textcoords="offset points",
+            )
     ax.set_xlabel("map time (s, 240 cells)")
     ax.set_ylabel("cells classified like the reference")
     ax.legend(fontsize=8)
