@@ -98,6 +98,22 @@ def test_fixed_map_no_rocking_cells_obey_threshold():
     assert calm.any() and (~calm).any()
 
 
+def test_flat_loop_locates_small_apexes_like_simulate():
+    # Regression: a Newton loop that bisected away from a converged root put
+    # apexes of tiny excursions 1e-6 rad/s off, and max rotation 1.7% off at
+    # (2.5, 2.5 m), a cell with 24 impacts of amplitude down to 1e-6 alpha.
+    size = np.array([0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0])
+    bm = jr.behavior_map([2.5], size, jr.FixedBase(), PULSE, chunk_size=8)
+    # These rotations are 0.5-5% of alpha: at rtol 1e-8 / atol 1e-10 both engines
+    # sit within 4e-6 of a SciPy solution at rtol 1e-11 (on opposite sides, 5e-6
+    # apart at most), far from the bug's 1.7e-2.
+    for j, r in enumerate(size):
+        one = jr.simulate(jr.Block(2.5, r), jr.FixedBase(), PULSE)
+        assert bm.impacts[0, j] == int(one.impacts)
+        assert bm.max_rotation[0, j] == pytest.approx(float(one.max_rotation), rel=2e-5)
+    assert bm.impacts[0, 4] > 10
+
+
 def test_save_load_roundtrip(linear_map, tmp_path):
     linear_map.save(tmp_path / "m.npz")
     back = jr.BehaviorMap.load(tmp_path / "m.npz")
