@@ -40,16 +40,19 @@ _FIELDS = (
 
 
 @eqx.filter_jit
-def _map_chunk(slenderness, size, base, motion, duration, opts, width):
-    """Analyse a chunk of cells on `width` lanes that refill from a queue.
+def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
+    """Analyse the first `count` cells of a chunk on `width` lanes that refill
+    from a queue.
 
     `slenderness`, `size` and every leaf of `base` (and of `motion`, unless it is
-    a `Record`) carry one leading cell axis. Each iteration of the vmapped loop
-    advances every lane by one step attempt (`flat_step`); a lane whose analysis
-    is done writes its result and takes the chunk's next cell at once, so lanes
-    wait for each other only at the chunk's end. Returns the responses (one per
-    cell) and the lane-steps executed (iterations times lanes). One compile per
-    base type, motion type, options, chunk and width.
+    a `Record`) carry one leading cell axis; cells from `count` on are padding
+    and never analysed (`count` is traced: one compile per chunk shape). Each
+    iteration of the vmapped loop advances every lane by one step attempt
+    (`flat_step`); a lane whose analysis is done writes its result and takes the
+    chunk's next cell at once, so lanes wait for each other only at the chunk's
+    end. Returns the responses (one per cell) and the lane-steps executed
+    (iterations times lanes). One compile per base type, motion type, options,
+    chunk shape and width.
     """
     n = slenderness.shape[0]
     width = min(width, n)
@@ -67,7 +70,7 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, width):
 
     def start(cell):
         c = jax.vmap(_initial_carry, in_axes=axes)(*lanes(cell))
-        return eqx.tree_at(lambda c: c.done, c, cell >= n)  # no cell left: idle
+        return eqx.tree_at(lambda c: c.done, c, cell >= n)  # cell n: idle lane
 
     def one(c, block, base, motion):
         new = flat_step(c, block, base, motion, duration, opts)
@@ -76,7 +79,7 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, width):
     def respond(c, block):
         return _response(c, block, opts)
 
-    cell0 = jnp.arange(width)
+    cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
     blocks = lanes(cell0)[0]
     empty = jax.vmap(respond)(start(cell0), blocks)
     out = jax.tree_util.tree_map(
@@ -97,7 +100,7 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, width):
         )
         # Finished lanes take the next cells of the queue.
         new_cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
-        new_cell = jnp.where(finished & (new_cell >= n), n, new_cell)
+        new_cell = jnp.where(finished & (new_cell >= count), n, new_cell)
         fresh = start(new_cell)
         c = jax.tree_util.tree_map(
             lambda f, o: jnp.where(finished.reshape((-1,) + (1,) * (o.ndim - 1)), f, o),
@@ -319,17 +322,20 @@ def behavior_map(
     shape = base_shape + motion_shape + (lam.size, r.size)
     n = int(np.prod(shape))
     chunk = n if chunk_size is None else min(chunk_size, n)
-    # Padding repeats the last lane, so every chunk has one shape (one compile).
-    index = np.minimum(np.arange(n + (-n) % chunk), n - 1)
+    # Chunks are padded to a power of two (at most `chunk_size`) with cells that
+    # are never analysed: maps of other sizes reuse a handful of compiles.
+    padded = 1 << (chunk - 1).bit_length()
+    padded = padded if chunk_size is None else min(padded, chunk_size)
     ib, im, il, ir = np.unravel_index(
-        index, (int(np.prod(base_shape)), int(np.prod(motion_shape)), lam.size, r.size)
+        np.arange(n),
+        (int(np.prod(base_shape)), int(np.prod(motion_shape)), lam.size, r.size),
     )
     lane_lam, lane_r = lam[il], r[ir]
     lane_base = _lanes(base, base_shape, ib)
     lane_motion = (
         motion if isinstance(motion, Record) else _lanes(motion, motion_shape, im)
     )
-    starts = range(0, index.size, chunk)
+    starts = range(0, n, chunk)
     if progress is None:
         progress = len(starts) > 1
     duration = as_float(duration)
@@ -390,12 +396,14 @@ def behavior_map(
 
     def compute_chunk(k):
         i, d = starts[k], k % len(devices)
+        count = min(chunk, n - i)
+
+        def pad(x):  # this chunk's cells, the last one repeated up to `padded`
+            x = np.asarray(x[i : i + count])
+            return np.concatenate([x, np.repeat(x[-1:], padded - count, axis=0)])
 
         def part(tree):
-            return jax.device_put(
-                jax.tree_util.tree_map(lambda x: np.asarray(x[i : i + chunk]), tree),
-                devices[d],
-            )
+            return jax.device_put(jax.tree_util.tree_map(pad, tree), devices[d])
 
         d_motion, d_duration = shared[d]
         m = d_motion if isinstance(motion, Record) else part(lane_motion)
@@ -407,10 +415,11 @@ def behavior_map(
                 m,
                 d_duration,
                 opts,
+                jax.device_put(np.asarray(count), devices[d]),  # traced
                 LANES,
             )
         )
-        return {n: np.asarray(getattr(out, n)) for n in _FIELDS} | {
+        return {f: np.asarray(getattr(out, f))[:count] for f in _FIELDS} | {
             "executed": np.asarray(executed)
         }
 
@@ -435,9 +444,8 @@ def behavior_map(
     results = [results[k] for k in range(len(starts))]
     seconds = time.perf_counter() - t
     fields = {
-        k: np.concatenate([c[k] for c in results])[:n].reshape(shape) for k in _FIELDS
+        k: np.concatenate([c[k] for c in results]).reshape(shape) for k in _FIELDS
     }
-    # Padding lanes repeat real ones: they count in both sums alike.
     useful = int(sum(c["steps"].sum() for c in results))
     executed = int(sum(c["executed"] for c in results))
     return BehaviorMap(

@@ -85,6 +85,26 @@ def test_new_map_parameters_reuse_compile(linear_map):
     assert _maps._map_chunk._cached._cache_size() == before
 
 
+def test_maps_of_other_sizes_reuse_compile():
+    # Chunks are padded to powers of two with cells that are never analysed:
+    # 5, 6 and 7 cells share one compile (and the padding is not counted).
+    maps = []
+    grids = [
+        ([2.0, 3.0, 4.0, 5.0, 6.0], [1.0]),
+        ([2.5, 3.5], [0.5, 1.0, 2.0]),
+        (np.linspace(1.5, 6.5, 7), [0.8]),
+    ]
+    for k, (lam, size) in enumerate(grids):
+        maps.append(jr.behavior_map(lam, size, jr.FixedBase(), PULSE))
+        if k == 0:
+            after_first = _maps._map_chunk._cached._cache_size()
+    assert _maps._map_chunk._cached._cache_size() == after_first
+    for bm in maps:
+        assert bm.outcome.shape == (len(bm.slenderness), len(bm.size))
+        assert np.all(bm.status == jr.Status.SUCCESS) and np.all(bm.steps > 0)
+        assert 0 < bm.lane_efficiency <= 1
+
+
 def test_fixed_map_no_rocking_cells_obey_threshold():
     bm = jr.behavior_map(
         np.linspace(1.2, 4.0, 8), [0.5, 2.0], jr.FixedBase(), PULSE, chunk_size=8
