@@ -103,7 +103,7 @@ def linearized_overturning_amplitude(frequency_ratio) -> np.ndarray:
     """
     ratios = np.atleast_1d(np.asarray(frequency_ratio, dtype=float))
     positive("frequency_ratio", ratios)
-    grid = np.geomspace(1.0 + 1e-9, 1e4, 1000)
+    grid = np.geomspace(1.0 + 1e-9, 1e4, 200)
     out = np.full(ratios.shape, np.nan)
     for i, w in enumerate(ratios):
 

@@ -188,7 +188,7 @@ def overturning_spectrum(spectra, labels=None, ax=None, linearized=True):
         )
     if linearized:
         xlim, ylim = ax.get_xlim(), ax.get_ylim()
-        w = np.linspace(max(xlim[0], 1e-3), xlim[1], 100)
+        w = np.linspace(max(xlim[0], 1e-3), xlim[1], 50)
         ax.plot(
             w,
             linearized_overturning_amplitude(w),
