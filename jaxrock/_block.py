@@ -28,13 +28,15 @@ class Block(eqx.Module):
     def alpha(self) -> Float[Array, "..."]:
         return jnp.arctan(1.0 / self.slenderness)
 
+    # sin(alpha) = 1 / sqrt(1 + lambda^2) and cos(alpha) = lambda sin(alpha): a
+    # square root instead of arctan, sin and cos in every evaluation.
     @property
     def b(self) -> Float[Array, "..."]:
-        return self.size * jnp.sin(self.alpha)
+        return self.size / jnp.sqrt(1.0 + self.slenderness**2)
 
     @property
     def h(self) -> Float[Array, "..."]:
-        return self.size * jnp.cos(self.alpha)
+        return self.slenderness * self.b
 
     @property
     def p(self) -> Float[Array, "..."]:

@@ -13,6 +13,7 @@ from ._block import Block
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase
 from ._misc import GRAVITY
+from ._trig import sincos
 
 
 class Phase:
@@ -42,7 +43,7 @@ class Args(eqx.Module):
 
 def _geometry(block, theta, s):
     """c1 = h cos(theta) + s b sin(theta), s1 = s b cos(theta) - h sin(theta)."""
-    cos, sin = jnp.cos(theta), jnp.sin(theta)
+    sin, cos = sincos(theta)
     return block.h * cos + s * block.b * sin, s * block.b * cos - block.h * sin
 
 

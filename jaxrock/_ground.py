@@ -8,6 +8,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._misc import as_float, check, positive
+from ._trig import sincos
 
 
 class AbstractGroundMotion(eqx.Module):
@@ -79,15 +80,16 @@ class MPPulse(AbstractGroundMotion):
         return 0.5 * self.gamma / self.frequency
 
     def acceleration(self, t):
-        tau = t - self.t0
+        # tau is clipped to the pulse (zero outside), which keeps the arguments
+        # of `sincos` small.
+        tau = jnp.clip(t - self.t0, -self.half_duration, self.half_duration)
         w = 2.0 * jnp.pi * self.frequency
-        nu = jnp.deg2rad(self.phase)
-        envelope = w * tau / self.gamma
+        sin_e, cos_e = sincos(w * tau / self.gamma)
+        sin_p, cos_p = sincos(w * tau + jnp.deg2rad(self.phase))
         a = -(self.amplitude * jnp.pi * self.frequency / self.gamma) * (
-            jnp.sin(envelope) * jnp.cos(w * tau + nu)
-            + self.gamma * jnp.sin(w * tau + nu) * (1.0 + jnp.cos(envelope))
+            sin_e * cos_p + self.gamma * sin_p * (1.0 + cos_e)
         )
-        return jnp.where(jnp.abs(tau) <= self.half_duration, a, 0.0)
+        return jnp.where(jnp.abs(t - self.t0) <= self.half_duration, a, 0.0)
 
     def velocity(self, t):
         """Ground velocity v(t) (m/s)."""

@@ -191,10 +191,11 @@ class FrictionPendulum(AbstractIsolator):
     def rates(self, state, u_ddot):
         u_dot, z = state[1], state[2]
         abs_z = jnp.abs(z)
+        power = abs_z ** (self.eta - 1.0)  # |z|^eta = |z| power: one pow, not two
         z_dot = (
             self.A * u_dot
-            - self.gamma * jnp.abs(u_dot) * z * abs_z ** (self.eta - 1.0)
-            - self.beta * u_dot * abs_z**self.eta
+            - self.gamma * jnp.abs(u_dot) * z * power
+            - self.beta * u_dot * abs_z * power
         ) / self.yield_displacement
         return jnp.stack([u_dot, u_ddot, z_dot])
 

@@ -244,6 +244,17 @@ LANES = 64
 _PEER_TIMEOUT = 3600.0  # s without a new chunk from the other processes
 
 
+# Signatures of the chunk loops compiled so far (see `_signature`).
+_COMPILED: set = set()
+
+
+def _signature(args) -> tuple:
+    """What selects a compile of `_map_chunk`: the structure (static fields
+    included), shapes, dtypes and devices of its arguments."""
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    return treedef, tuple((x.shape, x.dtype, str(x.sharding)) for x in leaves)
+
+
 def _wait_for(path: Path) -> None:
     """Wait for another process to write a chunk (while the store keeps growing)."""
     last, count = time.monotonic(), -1
@@ -394,7 +405,8 @@ def behavior_map(
         tmp.replace(path)  # atomic: no half-written chunk
         return out
 
-    def compute_chunk(k):
+    def chunk_inputs(k):
+        """The arguments of `_map_chunk` for chunk k, on its device, and the count."""
         i, d = starts[k], k % len(devices)
         count = min(chunk, n - i)
 
@@ -407,18 +419,14 @@ def behavior_map(
 
         d_motion, d_duration = shared[d]
         m = d_motion if isinstance(motion, Record) else part(lane_motion)
-        out, executed = jax.device_get(
-            _map_chunk(
-                part(lane_lam),
-                part(lane_r),
-                part(lane_base),
-                m,
-                d_duration,
-                opts,
-                jax.device_put(np.asarray(count), devices[d]),  # traced
-                LANES,
-            )
-        )
+        args = (part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts)
+        return args, count
+
+    def compute_chunk(k):
+        args, count = chunk_inputs(k)
+        count_on_device = jax.device_put(np.asarray(count), devices[k % len(devices)])
+        out, executed = jax.device_get(_map_chunk(*args, count_on_device, LANES))
+        _COMPILED.add(_signature(args))
         return {f: np.asarray(getattr(out, f))[:count] for f in _FIELDS} | {
             "executed": np.asarray(executed)
         }
@@ -431,11 +439,14 @@ def behavior_map(
             from tqdm.auto import tqdm
 
             bar = tqdm(total=len(starts), desc="behavior map", unit="chunk")
-        # This process's first chunk alone compiles; the others then reuse it.
-        # Other processes' chunks (read from the store) come last.
+        # Other processes' chunks (read from the store) come last. Unless this
+        # map's loop is compiled already, this process's first chunk runs alone
+        # (it compiles, the others then reuse the compile).
         ks = sorted(range(len(starts)), key=lambda k: (k % processes != me, k))
-        results = {ks[0]: run_chunk(ks[0])}
-        for k, out in zip(ks[1:], pool.map(run_chunk, ks[1:])):
+        results = {}
+        if _signature(chunk_inputs(ks[0])[0]) not in _COMPILED:
+            results[ks[0]] = run_chunk(ks[0])
+        for k, out in zip(ks[len(results) :], pool.map(run_chunk, ks[len(results) :])):
             results[k] = out
             if bar is not None:
                 bar.update(1 if len(results) > 2 else 2)

@@ -324,7 +324,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
 
     # Impact map with the rest rule.
     e, _ = restitution(block, base)
-    rise = (e * theta_dot) ** 2 / (2.0 * block.p**2 * jnp.sin(block.alpha))
+    rise = (e * theta_dot) ** 2 / (2.0 * block.p**2 * block.b / block.size)
     rest = (e <= 0) | (rise < opts.rest_tolerance * block.alpha)
     post_theta_dot, post_base = impact(block, base, theta_dot, base_state, rest)
     theta_dot = jnp.where(hit_ground, post_theta_dot, theta_dot)
