@@ -62,9 +62,10 @@ def sincos(x):
     w = 1.0 - half
     cos = w + (((1.0 - w) - half) + (z * z * _horner(z, _C) - y * dy))
     quadrant = n.astype(jnp.int32) & 3
+    first = [quadrant == 0, quadrant == 1, quadrant == 2]
     return (
-        jnp.select([quadrant == 0, quadrant == 1, quadrant == 2], [sin, cos, -sin], -cos),
-        jnp.select([quadrant == 0, quadrant == 1, quadrant == 2], [cos, -sin, -cos], sin),
+        jnp.select(first, [sin, cos, -sin], -cos),
+        jnp.select(first, [cos, -sin, -cos], sin),
     )
 
 
