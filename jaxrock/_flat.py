@@ -13,12 +13,11 @@ exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
 
 import diffrax
 import equinox as eqx
-import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 
-from ._dynamics import vector_field
-from ._simulate import _setup, _transition
+from ._dynamics import Args, vector_field
+from ._simulate import _setup, _setup_conditions, _transition
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -35,6 +34,40 @@ def _clip(t0, t1, times):
     return jnp.where((i < times.shape[0]) & (nxt < t1), nxt, t1)
 
 
+def _unrollable(solver) -> bool:
+    """An explicit Runge-Kutta method given by a Butcher tableau."""
+    return isinstance(solver, diffrax.AbstractERK) and solver.tableau.c1 == 0
+
+
+def _erk_step(tableau, t0, t1, y0, args):
+    """One step of an explicit Runge-Kutta method, its stages unrolled.
+
+    The same arithmetic as Diffrax's `AbstractERK.step` (which runs the stages in
+    a while loop: on the CPU the loop's overhead cost more than the stages of
+    this small system). Returns y1, the error estimate and Diffrax's dense
+    information (y0, y1 and the stage increments k_i = h f(t_i, y_i)).
+    """
+    h = t1 - t0
+
+    def increment(t, y):
+        return jax.tree_util.tree_map(lambda v: h * v, vector_field(t, y, args))
+
+    def combine(y, weights, ks):
+        return jax.tree_util.tree_map(
+            lambda y, *k: sum((w * kj for w, kj in zip(weights, k) if w != 0), y),
+            y,
+            *ks,
+        )
+
+    ks = [increment(t0, y0)]
+    for c, a in zip(tableau.c, tableau.a_lower):
+        ks.append(increment(t0 + c * h, combine(y0, a, ks)))
+    y1 = combine(y0, tableau.b_sol, ks)
+    y_error = combine(jax.tree_util.tree_map(jnp.zeros_like, y0), tableau.b_error, ks)
+    k = jax.tree_util.tree_map(lambda *k: jnp.stack(k), *ks)
+    return y1, y_error, dict(y0=y0, y1=y1, k=k)
+
+
 class _StepSolution:
     """What `_transition` reads of a Diffrax solution, for one step."""
 
@@ -46,8 +79,29 @@ class _StepSolution:
         self.stats = {"num_steps": steps}
 
 
-def flat_step(c, block, base, motion, duration, opts):
-    """One step attempt of one lane; returns the new carry (as `_transition`)."""
+class _Attempt(eqx.Module):
+    """One lane's step attempt, before its event (if any) is located."""
+
+    t0: jax.Array
+    t1: jax.Array
+    y0: tuple
+    y1: tuple
+    keep: jax.Array  # the controller accepted the step
+    fired: tuple  # per condition: this one ends the step (the first in order)
+    g0: jax.Array  # the fired condition at t0 (> 0) and at t1 (<= 0)
+    g1: jax.Array
+    dense: dict
+    args: Args
+    next_dt: jax.Array
+    failed: jax.Array
+
+    @property
+    def event(self):
+        return sum(self.fired, jnp.asarray(False)) > 0
+
+
+def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
+    """One step attempt of one lane, and the conditions at its ends."""
     active, args, conditions, t_stop, dtmax, controller = _setup(
         c, block, base, motion, duration, opts
     )
@@ -58,65 +112,126 @@ def flat_step(c, block, base, motion, duration, opts):
     t1 = jnp.minimum(t0 + jnp.minimum(c.dt, dtmax), t_stop)
     t1 = _clip(t0, _clip(t0, t1, motion.step_ts), motion.jump_ts)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
-    state = solver.init(term, t0, t1, y0, args)
-    y1, y_error, dense, _, solver_result = solver.step(
-        term, t0, t1, y0, args, state, made_jump=False
-    )
+    if _unrollable(solver):
+        y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args)
+        solver_result = diffrax.RESULTS.successful
+    else:
+        state = solver.init(term, t0, t1, y0, args)
+        y1, y_error, dense, _, solver_result = solver.step(
+            term, t0, t1, y0, args, state, made_jump=False
+        )
     _, ctrl_state = controller.init(term, t0, t1, y0, t1 - t0, args, None, None)
     keep, next_t0, next_t1, _, _, ctrl_result = controller.adapt_step_size(
         t0, t1, y0, y1, args, y_error, solver.error_order(term), ctrl_state
     )
     # Events: the first condition (in order) that goes from > 0 to <= 0.
     fired, earlier = [], jnp.asarray(False)
-    v0s = [cond(t0, y0, args) for cond in conditions]
-    v1s = [cond(t1, y1, args) for cond in conditions]
-    for v0, v1 in zip(v0s, v1s):
+    g0 = g1 = jnp.zeros_like(t0)
+    for cond in conditions:
+        v0, v1 = cond(t0, y0, args), cond(t1, y1, args)
         hit = keep & (v0 > 0) & (v1 <= 0) & ~earlier
         fired.append(hit)
         earlier = earlier | hit
-    event = earlier
-    interp = solver.interpolation_cls(t0=t0, t1=t1, **dense)
+        g0, g1 = jnp.where(hit, v0, g0), jnp.where(hit, v1, g1)
+    failed = (solver_result != diffrax.RESULTS.successful) | (
+        ctrl_result != diffrax.RESULTS.successful
+    )
+    next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
+    return _Attempt(
+        t0, t1, y0, y1, keep, tuple(fired), g0, g1, dense, args, next_dt, failed
+    )
+
+
+def _locate(a: _Attempt, opts):
+    """The event's time and state: bracketed Newton on [t0, t1] (the condition is
+    > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant."""
+    conditions = _setup_conditions(a.args.base)
+    interp = opts.solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense)
 
     def g(t):
         y = interp.evaluate(t)
         return sum(
-            jnp.where(h, cond(t, y, args), 0.0) for h, cond in zip(fired, conditions)
+            jnp.where(h, cond(t, y, a.args), 0.0)
+            for h, cond in zip(a.fired, conditions)
         )
 
-    def locate():
-        """Bracketed Newton on [t0, t1] (g > 0 at t0, <= 0 at t1) from the secant."""
-        g0 = sum(jnp.where(h, v, 0.0) for h, v in zip(fired, v0s))
-        g1 = sum(jnp.where(h, v, 0.0) for h, v in zip(fired, v1s))
-        lower, upper = t0, t1
-        t = t0 + (t1 - t0) * g0 / jnp.where(g0 - g1 == 0, 1.0, g0 - g1)
-        t = jnp.clip(jnp.where(event, t, t1), t0, t1)
-        for _ in range(_NEWTON):
-            value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
-            positive = value > 0
-            lower = jnp.where(positive, t, lower)
-            upper = jnp.where(positive, upper, t)
-            newton = t - value / jnp.where(slope == 0, 1.0, slope)
-            # Inclusive bounds: a converged Newton step (t itself) stays put.
-            inside = (slope != 0) & (newton >= lower) & (newton <= upper)
-            inside = inside & jnp.isfinite(newton)
-            bisect = 0.5 * (lower + upper)
-            t = jnp.where(value == 0, t, jnp.where(inside, newton, bisect))
-        return t, interp.evaluate(t)
+    lower, upper = a.t0, a.t1
+    t = a.t0 + (a.t1 - a.t0) * a.g0 / jnp.where(a.g0 == a.g1, 1.0, a.g0 - a.g1)
+    t = jnp.clip(t, a.t0, a.t1)
+    for _ in range(_NEWTON):
+        value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
+        positive = value > 0
+        lower = jnp.where(positive, t, lower)
+        upper = jnp.where(positive, upper, t)
+        newton = t - value / jnp.where(slope == 0, 1.0, slope)
+        # Inclusive bounds: a converged Newton step (t itself) stays put.
+        inside = (slope != 0) & (newton >= lower) & (newton <= upper)
+        inside = inside & jnp.isfinite(newton)
+        bisect = 0.5 * (lower + upper)
+        t = jnp.where(value == 0, t, jnp.where(inside, newton, bisect))
+    return t, interp.evaluate(t)
 
-    # Most iterations see no event in any lane: skip the root find then.
-    t_event, y_event = jax.lax.cond(eqxi.unvmap_any(event), locate, lambda: (t1, y1))
-    t_end = jnp.where(event, t_event, jnp.where(keep, t1, t0))
+
+def _finish(c, a: _Attempt, t_event, y_event, block, base, motion, duration, opts):
+    """The lane's new carry: the step's end, or the event and its transition."""
+    event = a.event
+    t_end = jnp.where(event, t_event, jnp.where(a.keep, a.t1, a.t0))
     y_end = jax.tree_util.tree_map(
-        lambda a, b, e: jnp.where(event, e, jnp.where(keep, a, b)), y1, y0, y_event
+        lambda a1, a0, e: jnp.where(event, e, jnp.where(a.keep, a1, a0)),
+        a.y1,
+        a.y0,
+        y_event,
     )
     result = diffrax.RESULTS.where(
         event, diffrax.RESULTS.event_occurred, diffrax.RESULTS.successful
     )
-    failed = (solver_result != diffrax.RESULTS.successful) | (
-        ctrl_result != diffrax.RESULTS.successful
-    )
-    result = diffrax.RESULTS.where(failed, diffrax.RESULTS.internal_error, result)
-    sol = _StepSolution(t_end, y_end, result, fired, jnp.asarray(1))
+    result = diffrax.RESULTS.where(a.failed, diffrax.RESULTS.internal_error, result)
+    sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     new = _transition(c, sol, block, base, motion, duration, opts)
     # The next step: the controller's proposal (not the mean step of a segment).
-    return eqx.tree_at(lambda n: n.dt, new, jnp.where(active, next_t1 - next_t0, c.dt))
+    return eqx.tree_at(lambda n: n.dt, new, a.next_dt)
+
+
+# Lanes whose events are located together (a batch of the root find).
+_BATCH = 8
+
+
+def flat_step(c, block, base, motion, duration, opts, in_axes):
+    """One step attempt of every lane (leading axis); returns the new carries.
+
+    `block`, `base` and `motion` are batched as `in_axes` says. The root find
+    runs only on the lanes with an event, gathered in batches of `_BATCH` (in
+    most iterations a few of the lanes have one: one batch, and none without).
+    """
+    lanes = c.t.shape[0]
+    a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
+        c, block, base, motion, duration, opts
+    )
+    event = a.event
+    batch = min(_BATCH, lanes)
+    batches = -(-lanes // batch)
+    # The lanes with an event, in order, then `lanes` (none) up to whole batches.
+    count = jnp.sum(event)
+    slot = jnp.where(event, jnp.cumsum(event) - 1, batches * batch)
+    order = (
+        jnp.full(batches * batch, lanes).at[slot].set(jnp.arange(lanes), mode="drop")
+    )
+
+    def locate_batch(state):
+        j, t_event, y_event = state
+        take = jax.lax.dynamic_slice(order, (j * batch,), (batch,))
+        take = jnp.where(j * batch + jnp.arange(batch) < count, take, lanes)
+        sub = jax.tree_util.tree_map(lambda x: x[jnp.minimum(take, lanes - 1)], a)
+        t, y = jax.vmap(_locate, in_axes=(0, None))(sub, opts)
+        t_event = t_event.at[take].set(t, mode="drop")
+        y_event = jax.tree_util.tree_map(
+            lambda old, new: old.at[take].set(new, mode="drop"), y_event, y
+        )
+        return j + 1, t_event, y_event
+
+    _, t_event, y_event = jax.lax.while_loop(
+        lambda state: state[0] * batch < count, locate_batch, (0, a.t1, a.y1)
+    )
+    return jax.vmap(_finish, in_axes=(0, 0, 0, 0) + in_axes + (None, None))(
+        c, a, t_event, y_event, block, base, motion, duration, opts
+    )

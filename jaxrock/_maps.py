@@ -72,10 +72,6 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
         c = jax.vmap(_initial_carry, in_axes=axes)(*lanes(cell))
         return eqx.tree_at(lambda c: c.done, c, cell >= n)  # cell n: idle lane
 
-    def one(c, block, base, motion):
-        new = flat_step(c, block, base, motion, duration, opts)
-        return new, new.steps - c.steps
-
     def respond(c, block):
         return _response(c, block, opts)
 
@@ -89,8 +85,9 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
     def body(state):
         c, cell, queue, out, executed = state
         inputs = lanes(cell)
-        c, steps = jax.vmap(one, in_axes=(0,) + axes)(c, *inputs)
-        executed = executed + jnp.max(steps) * width
+        steps = c.steps
+        c = flat_step(c, *inputs, duration, opts, axes)
+        executed = executed + jnp.max(c.steps - steps) * width
         finished = (cell < n) & ~(~c.done & (c.segments < opts.max_segments))
         # Results of finished lanes to their cells (other lanes write nowhere).
         index = jnp.where(finished, cell, n)

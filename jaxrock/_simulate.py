@@ -230,6 +230,14 @@ def _segment_end(c: _Carry, motion, duration):
     return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
 
 
+def _setup_conditions(base):
+    """The event conditions, in order: the first that fires ends the segment."""
+    conditions = (condition_a, condition_b, condition_guard)
+    if not isinstance(base, FixedBase):
+        conditions = conditions + (condition_base, condition_quiet)
+    return conditions
+
+
 def _setup(c: _Carry, block, base, motion, duration, opts):
     """What a segment (or a step of the flat loop) starts from: whether the lane
     is active, the vector field's arguments, the event conditions, the end of
@@ -245,9 +253,7 @@ def _setup(c: _Carry, block, base, motion, duration, opts):
         c.t >= motion.end_time,
         c.theta_ref,
     )
-    conditions = (condition_a, condition_b, condition_guard)
-    if not isinstance(base, FixedBase):
-        conditions = conditions + (condition_base, condition_quiet)
+    conditions = _setup_conditions(base)
     shaking, t_stop = _segment_end(c, motion, duration)
     max_step = motion.max_step
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
