@@ -82,20 +82,13 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
         lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), empty
     )
 
-    def body(state):
-        c, cell, queue, out, executed = state
-        inputs = lanes(cell)
-        steps = c.steps
-        c = flat_step(c, *inputs, duration, opts, axes)
-        executed = executed + jnp.max(c.steps - steps) * width
-        finished = (cell < n) & ~(~c.done & (c.segments < opts.max_segments))
-        # Results of finished lanes to their cells (other lanes write nowhere).
-        index = jnp.where(finished, cell, n)
-        results = jax.vmap(respond)(c, inputs[0])
+    def refill(c, cell, queue, out, finished, blocks):
+        """Finished lanes write their results and take the queue's next cells."""
+        index = jnp.where(finished, cell, n)  # other lanes write nowhere
+        results = jax.vmap(respond)(c, blocks)
         out = jax.tree_util.tree_map(
             lambda o, r: o.at[index].set(r, mode="drop"), out, results
         )
-        # Finished lanes take the next cells of the queue.
         new_cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         new_cell = jnp.where(finished & (new_cell >= count), n, new_cell)
         fresh = start(new_cell)
@@ -104,7 +97,28 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
             fresh,
             c,
         )
-        return c, new_cell, queue + jnp.sum(finished), out, executed
+        return c, new_cell, queue + jnp.sum(finished), out
+
+    def body(state):
+        c, cell, queue, out, executed = state
+        inputs = lanes(cell)
+        steps = c.steps
+        c = flat_step(c, *inputs, duration, opts, axes)
+        executed = executed + jnp.max(c.steps - steps) * width
+        finished = (cell < n) & ~(~c.done & (c.segments < opts.max_segments))
+        # Most iterations finish no lane: then nothing is written.
+        c, cell, queue, out = jax.lax.cond(
+            jnp.any(finished),
+            refill,
+            lambda c, cell, queue, out, *_: (c, cell, queue, out),
+            c,
+            cell,
+            queue,
+            out,
+            finished,
+            inputs[0],
+        )
+        return c, cell, queue, out, executed
 
     state = (start(cell0), cell0, jnp.asarray(width), out, jnp.asarray(0))
     state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), body, state)
