@@ -158,7 +158,9 @@ def _locate(a: _Attempt, opts):
     lower, upper = a.t0, a.t1
     t = a.t0 + (a.t1 - a.t0) * a.g0 / jnp.where(a.g0 == a.g1, 1.0, a.g0 - a.g1)
     t = jnp.clip(t, a.t0, a.t1)
-    for _ in range(_NEWTON):
+
+    def newton_step(_, state):
+        t, lower, upper = state
         value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
         positive = value > 0
         lower = jnp.where(positive, t, lower)
@@ -169,6 +171,9 @@ def _locate(a: _Attempt, opts):
         inside = inside & jnp.isfinite(newton)
         bisect = 0.5 * (lower + upper)
         t = jnp.where(value == 0, t, jnp.where(inside, newton, bisect))
+        return t, lower, upper
+
+    t, _, _ = jax.lax.fori_loop(0, _NEWTON, newton_step, (t, lower, upper), unroll=4)
     return t, interp.evaluate(t)
 
 
