@@ -9,6 +9,8 @@ the same solver and controller (Tsit5 and Diffrax's PIDController by default);
 the same event conditions are checked at the step's end, an event is located
 on the step's dense output by bracketed Newton, and `_transition` applies it
 exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
+For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`),
+and only the lanes with an event run the root find, in batches (`flat_step`).
 """
 
 import diffrax

@@ -1,0 +1,42 @@
+"""The flat loop's unrolled Runge-Kutta step against Diffrax's own step."""
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock._dynamics import Args, Phase, vector_field
+from jaxrock._flat import _erk_step
+
+
+@pytest.mark.parametrize("solver", [diffrax.Tsit5(), diffrax.Dopri5()])
+def test_unrolled_step_equals_diffrax_step(solver):
+    """Same y1, error estimate and dense output (so the same interpolant), on a
+    rocking block on a friction pendulum mid-pulse (all five states moving)."""
+    base = jr.FrictionPendulum(0.11, 2.24, 0.5)
+    args = Args(
+        jr.Block(3.0, 1.0),
+        base,
+        jr.near_fault_pulse("San Fernando PCD/SN"),
+        jnp.asarray(Phase.RISING),
+        jnp.asarray(1.0),
+        jnp.asarray(0.0),
+        jnp.asarray(False),
+        jnp.asarray(0.0),
+    )
+    y0 = (jnp.asarray(0.01), jnp.asarray(0.2), jnp.array([0.01, 0.3, 0.5]))
+    t0, t1 = jnp.asarray(0.7), jnp.asarray(0.7001)
+    term = diffrax.ODETerm(vector_field)
+    state = solver.init(term, t0, t1, y0, args)
+    want = solver.step(term, t0, t1, y0, args, state, made_jump=False)[:3]
+    got = _erk_step(solver.tableau, t0, t1, y0, args)
+    for w, g in zip(jax.tree_util.tree_leaves(want), jax.tree_util.tree_leaves(got)):
+        np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=1e-13, atol=1e-17)
+    ts = jnp.linspace(t0, t1, 5)
+    for t in ts:
+        a = solver.interpolation_cls(t0=t0, t1=t1, **want[2]).evaluate(t)
+        b = solver.interpolation_cls(t0=t0, t1=t1, **got[2]).evaluate(t)
+        for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)):
+            np.testing.assert_allclose(np.asarray(y), np.asarray(x), rtol=1e-13)
