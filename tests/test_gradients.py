@@ -6,6 +6,8 @@ the 1e-5 tolerance); only cases whose impact count and outcome do not change
 inside the stencil are compared (there the response is smooth).
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -38,6 +40,35 @@ def _fixed(amplitude):
     )
 
 
+def _linear_damping(damping):
+    return jr.simulate(
+        jr.Block(3.0, 0.5), jr.LinearIsolator(2.0, damping, 0.5), PULSE, **TOL
+    )
+
+
+FUNCTIONS = {
+    "linear-period": _linear,
+    "linear-damping": _linear_damping,
+    "fps-friction": _fps,
+    "fixed-amplitude": _fixed,
+}
+
+
+@functools.cache
+def _derivatives(name, x0):
+    """jaxrock's d(max_rotation, max_base_displacement)/dx: one trace and compile
+    per function, shared by the tests below (compiling is most of their time)."""
+    f = FUNCTIONS[name]
+    d = jax.jacfwd(
+        lambda x: (lambda r: (r.max_rotation, r.max_base_displacement))(f(x))
+    )
+    rotation, displacement = d(jnp.asarray(x0))
+    return {
+        "max_rotation": float(rotation),
+        "max_base_displacement": float(displacement),
+    }
+
+
 # name -> (function, point, field, relative tolerance)
 CASES = {
     "linear-period": (_linear, 2.0, "max_rotation", 1e-5),
@@ -60,7 +91,7 @@ def test_jacfwd_matches_central_differences(name):
     for r in (lo, hi):
         assert int(r.impacts) == int(mid.impacts) and int(r.outcome) == int(mid.outcome)
     fd = (float(getattr(hi, field)) - float(getattr(lo, field))) / (2 * h)
-    ad = float(jax.jacfwd(lambda x: getattr(f(x), field))(jnp.asarray(x0)))
+    ad = _derivatives(name.removesuffix("-disp"), x0)[field]
     assert ad == pytest.approx(fd, rel=rel)
     assert abs(fd) > 1e-6  # a derivative that could be wrong
 
@@ -172,23 +203,10 @@ def test_jacfwd_matches_differences_of_scipy_reference(name, lam, size, param):
             lam, size, base, acc, t_end + 5.0, max_step, rtol=1e-12, atol=1e-14
         )
 
-    def ours(x):
-        v = dict(values, **{param: x})
-        base = (
-            jr.FixedBase()
-            if param == "amplitude"
-            else jr.LinearIsolator(v["period"], v["damping"], 0.5)
-        )
-        return jr.simulate(
-            jr.Block(lam, size),
-            base,
-            jr.MPPulse(v["amplitude"], 0.68, 1.6, 180.0),
-            **TOL,
-        ).max_rotation
-
     h = 1e-5 * x0
     lo, hi = reference(x0 - h), reference(x0 + h)
     assert lo["impacts"] == hi["impacts"] >= 2
     fd = (hi["max_rotation"] - lo["max_rotation"]) / (2 * h)
-    ad = float(jax.jacfwd(ours)(jnp.asarray(x0)))
+    # The same functions as above (same block, base and San Fernando pulse).
+    ad = _derivatives(name, x0)["max_rotation"]
     assert ad == pytest.approx(fd, rel=1e-4)
