@@ -346,7 +346,9 @@ def behavior_map(
     chunk = n if chunk_size is None else min(chunk_size, n)
     # Chunks are padded to a power of two (at most `chunk_size`) with cells that
     # are never analysed: maps of other sizes reuse a handful of compiles.
-    padded = 1 << (chunk - 1).bit_length()
+    # Small maps all take one chunk shape, that of a full set of lanes (padding
+    # costs nothing but idle lanes; a compile costs seconds).
+    padded = max(1 << (chunk - 1).bit_length(), LANES)
     padded = padded if chunk_size is None else min(padded, chunk_size)
     ib, im, il, ir = np.unravel_index(
         np.arange(n),
