@@ -459,10 +459,13 @@ def behavior_map(
         results = {}
         if _signature(chunk_inputs(ks[0])[0]) not in _COMPILED:
             results[ks[0]] = run_chunk(ks[0])
-        for k, out in zip(ks[len(results) :], pool.map(run_chunk, ks[len(results) :])):
+            if bar is not None:
+                bar.update(1)
+        rest = ks[len(results) :]
+        for k, out in zip(rest, pool.map(run_chunk, rest)):
             results[k] = out
             if bar is not None:
-                bar.update(1 if len(results) > 2 else 2)
+                bar.update(1)
         if bar is not None:
             bar.close()
     results = [results[k] for k in range(len(starts))]

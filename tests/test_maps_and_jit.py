@@ -73,6 +73,17 @@ def test_chunking_does_not_change_results(linear_map):
         )
 
 
+def test_progress_bar_counts_each_chunk_once(linear_map, capsys):
+    """A compiled map runs all its chunks at once; the bar still ends at 4/4."""
+    again = jr.behavior_map(
+        LAM, SIZE, jr.LinearIsolator(2.0, 0.35, 0.5), PULSE, chunk_size=4
+    )
+    bar = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    assert [line for line in bar if "behavior map" in line][-1].count("4/4") == 1
+    np.testing.assert_array_equal(again.outcome, linear_map.outcome)
+    np.testing.assert_array_equal(again.max_rotation, linear_map.max_rotation)
+
+
 def test_new_map_parameters_reuse_compile(linear_map):
     before = _maps._map_chunk._cached._cache_size()
     jr.behavior_map(
