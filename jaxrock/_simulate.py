@@ -517,6 +517,18 @@ def _rows(t, y, regime) -> np.ndarray:
     return out
 
 
+@eqx.filter_jit
+def _acceleration(motion, t):
+    return jax.vmap(motion.acceleration)(t)
+
+
+def _acceleration_at(motion, t: np.ndarray) -> np.ndarray:
+    """x_g''(t), compiled (op by op it took seconds); t padded to a power of two
+    so that histories of other lengths reuse a handful of compiles."""
+    padded = np.pad(t, (0, (1 << (t.size - 1).bit_length()) - t.size), mode="edge")
+    return np.asarray(_acceleration(motion, padded))[: t.size]
+
+
 def _history(block, base, motion, duration, opts, samples=2001):
     """The same segments in a Python loop, sampled on a grid and at every event.
 
@@ -552,7 +564,7 @@ def _history(block, base, motion, duration, opts, samples=2001):
         u_dot=h[:, 4],
         z=h[:, 5],
         regime=h[:, 6],
-        ground_acceleration=np.asarray(jax.vmap(motion.acceleration)(h[:, 0])),
+        ground_acceleration=_acceleration_at(motion, h[:, 0]),
         event_times=np.asarray(times),
         event_kinds=tuple(kinds),
         alpha=float(block.alpha),

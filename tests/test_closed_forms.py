@@ -183,3 +183,20 @@ def test_stiff_light_isolator_approaches_fixed_base():
     assert float(stiff.max_base_displacement) < 1e-3
     # ... whereas the paper's isolator does change the answer.
     assert abs(float(soft.uplift_time) - float(fixed.uplift_time)) > 1e-2
+
+
+def test_history_ground_acceleration_is_the_pulse(fixed_rocking):
+    """History's x_g'' (compiled, on padded times) is Eq. 3.1's derivative,
+    written here in NumPy, at every recorded time."""
+    h = fixed_rocking[1].history
+    a, f, g, nu = 1.15, 0.68, 1.6, np.deg2rad(180.0)
+    tau = h.t - g / (2 * f)
+    w = 2 * np.pi * f
+    want = -(a * np.pi * f / g) * (
+        np.sin(w * tau / g) * np.cos(w * tau + nu)
+        + g * np.sin(w * tau + nu) * (1 + np.cos(w * tau / g))
+    )
+    want = np.where(np.abs(tau) <= g / (2 * f), want, 0.0)
+    assert h.ground_acceleration.shape == h.t.shape
+    np.testing.assert_allclose(h.ground_acceleration, want, rtol=0, atol=1e-12)
+    assert np.abs(want).max() > 1.0  # the pulse is in the window
