@@ -204,7 +204,8 @@ _BATCH = 8
 
 
 def flat_step(c, block, base, motion, duration, opts, in_axes):
-    """One step attempt of every lane (leading axis); returns the new carries.
+    """One step attempt of every lane (leading axis); returns the new carries
+    and the attempts (`_Attempt`, before their events were located).
 
     `block`, `base` and `motion` are batched as `in_axes` says. The root find
     runs only on the lanes with an event, gathered in batches of `_BATCH` (in
@@ -239,6 +240,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     _, t_event, y_event = jax.lax.while_loop(
         lambda state: state[0] * batch < count, locate_batch, (0, a.t1, a.y1)
     )
-    return jax.vmap(_finish, in_axes=(0, 0, 0, 0) + in_axes + (None, None))(
+    new = jax.vmap(_finish, in_axes=(0, 0, 0, 0) + in_axes + (None, None))(
         c, a, t_event, y_event, block, base, motion, duration, opts
     )
+    return new, a

@@ -39,20 +39,42 @@ _FIELDS = (
 )
 
 
+def _select(mask, new, old):
+    """Per lane (leading axis): `new` where `mask`, else `old` (pytrees)."""
+    return jax.tree_util.tree_map(
+        lambda n, o: jnp.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o),
+        new,
+        old,
+    )
+
+
 @eqx.filter_jit
-def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
+def _map_chunk(
+    slenderness, size, base, motion, shared, duration, opts, count, pilot, width
+):
     """Analyse the first `count` cells of a chunk on `width` lanes that refill
     from a queue.
 
-    `slenderness`, `size` and every leaf of `base` (and of `motion`, unless it is
-    a `Record`) carry one leading cell axis; cells from `count` on are padding
-    and never analysed (`count` is traced: one compile per chunk shape). Each
-    iteration of the vmapped loop advances every lane by one step attempt
-    (`flat_step`); a lane whose analysis is done writes its result and takes the
-    chunk's next cell at once, so lanes wait for each other only at the chunk's
-    end. Returns the responses (one per cell) and the lane-steps executed
-    (iterations times lanes). One compile per base type, motion type, options,
-    chunk shape and width.
+    `slenderness`, `size`, every leaf of `base` (and of `motion`, unless it is a
+    `Record`) and of `shared` carry one leading cell axis; cells from `count` on
+    are padding and never analysed (`count` is traced: one compile per chunk
+    shape). Each iteration of the vmapped loop advances every lane by one step
+    attempt (`flat_step`); a lane whose analysis is done writes its result and
+    takes the chunk's next cell at once, so lanes wait for each other only at
+    the chunk's end.
+
+    The pure-translation phase is shared (see `behavior_map`): until it uplifts a
+    block moves with its base as one body, and neither the steps nor the events
+    of that phase depend on the block. With `pilot` (traced: the same compile)
+    each cell runs from t = 0 only up to the attempt in which it uplifts, or that
+    reaches the end of the shaking or ends the analysis, and returns its carry
+    before that attempt. Without, each cell starts from `shared` (such a carry
+    of a pilot of its slenderness, base and motion), or from t = 0 if it
+    uplifts at once, and redoes that attempt itself: the same steps as its
+    own analysis from t = 0.
+
+    Returns the responses and carries (one per cell), the lane-steps executed
+    (iterations times lanes) and those that advanced an analysis.
     """
     n = slenderness.shape[0]
     width = min(width, n)
@@ -70,42 +92,43 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
 
     def start(cell):
         c = jax.vmap(_initial_carry, in_axes=axes)(*lanes(cell))
-        return eqx.tree_at(lambda c: c.done, c, cell >= n)  # cell n: idle lane
+        later = jax.tree_util.tree_map(lambda x: x[jnp.minimum(cell, n - 1)], shared)
+        c = _select(c.rocked | pilot, c, later)
+        return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
-    def respond(c, block):
-        return _response(c, block, opts)
+    def results(c, block, before):
+        return _response(c, block, opts), before
 
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
     blocks = lanes(cell0)[0]
-    empty = jax.vmap(respond)(start(cell0), blocks)
+    c0 = start(cell0)
     out = jax.tree_util.tree_map(
-        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), empty
+        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype),
+        jax.vmap(results)(c0, blocks, c0),
     )
 
-    def refill(c, cell, queue, out, finished, blocks):
+    def refill(c, cell, queue, out, finished, blocks, before):
         """Finished lanes write their results and take the queue's next cells."""
         index = jnp.where(finished, cell, n)  # other lanes write nowhere
-        results = jax.vmap(respond)(c, blocks)
         out = jax.tree_util.tree_map(
-            lambda o, r: o.at[index].set(r, mode="drop"), out, results
+            lambda o, r: o.at[index].set(r, mode="drop"),
+            out,
+            jax.vmap(results)(c, blocks, before),
         )
         new_cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         new_cell = jnp.where(finished & (new_cell >= count), n, new_cell)
-        fresh = start(new_cell)
-        c = jax.tree_util.tree_map(
-            lambda f, o: jnp.where(finished.reshape((-1,) + (1,) * (o.ndim - 1)), f, o),
-            fresh,
-            c,
-        )
+        c = _select(finished, start(new_cell), c)
         return c, new_cell, queue + jnp.sum(finished), out
 
     def body(state):
-        c, cell, queue, out, executed = state
+        before, cell, queue, out, executed, useful = state
         inputs = lanes(cell)
-        steps = c.steps
-        c = flat_step(c, *inputs, duration, opts, axes)
-        executed = executed + jnp.max(c.steps - steps) * width
-        finished = (cell < n) & ~(~c.done & (c.segments < opts.max_segments))
+        c, a = flat_step(before, *inputs, duration, opts, axes)
+        executed = executed + jnp.max(c.steps - before.steps) * width
+        useful = useful + jnp.sum(c.steps - before.steps)
+        ended = c.done | (c.segments >= opts.max_segments)
+        leaves = c.rocked | (a.t1 >= inputs[2].end_time)  # the shared phase
+        finished = (cell < n) & (ended | (pilot & leaves))
         # Most iterations finish no lane: then nothing is written.
         c, cell, queue, out = jax.lax.cond(
             jnp.any(finished),
@@ -117,12 +140,15 @@ def _map_chunk(slenderness, size, base, motion, duration, opts, count, width):
             out,
             finished,
             inputs[0],
+            before,
         )
-        return c, cell, queue, out, executed
+        return c, cell, queue, out, executed, useful
 
-    state = (start(cell0), cell0, jnp.asarray(width), out, jnp.asarray(0))
+    zero = jnp.asarray(0)
+    state = (c0, cell0, jnp.asarray(width), out, zero, zero)
     state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), body, state)
-    return state[3], state[4]
+    (responses, carries), executed, useful = state[3:]
+    return responses, carries, executed, useful
 
 
 def _fmt(x) -> str:
@@ -350,24 +376,35 @@ def behavior_map(
     # costs nothing but idle lanes; a compile costs seconds).
     padded = max(1 << (chunk - 1).bit_length(), LANES)
     padded = padded if chunk_size is None else min(padded, chunk_size)
+    record = isinstance(motion, Record)
+    n_base, n_motion = int(np.prod(base_shape)), int(np.prod(motion_shape))
+
+    def cells(ib, im, il, ir):
+        """The inputs of the cells (ib, im, il, ir) (1-D index arrays)."""
+        return (
+            lam[il],
+            r[ir],
+            _lanes(base, base_shape, ib),
+            None if record else _lanes(motion, motion_shape, im),
+        )
+
     ib, im, il, ir = np.unravel_index(
-        np.arange(n),
-        (int(np.prod(base_shape)), int(np.prod(motion_shape)), lam.size, r.size),
+        np.arange(n), (n_base, n_motion, lam.size, r.size)
     )
-    lane_lam, lane_r = lam[il], r[ir]
-    lane_base = _lanes(base, base_shape, ib)
-    lane_motion = (
-        motion if isinstance(motion, Record) else _lanes(motion, motion_shape, im)
-    )
-    starts = range(0, n, chunk)
+    # One pilot per base, motion and slenderness runs the shared translation.
+    pilots = n_base * n_motion * lam.size
+    pilot_of_cell = (ib * n_motion + im) * lam.size + il
+    pb, pm, pl = np.unravel_index(np.arange(pilots), (n_base, n_motion, lam.size))
+    pilot_inputs = cells(pb, pm, pl, np.zeros_like(pl))
+    cell_inputs = cells(ib, im, il, ir)
     if progress is None:
-        progress = len(starts) > 1
+        progress = -(-n // chunk) > 1
     duration = as_float(duration)
     # Chunks go round-robin to the local devices (GPUs, or several CPU devices
     # with XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread
     # per CPU core: XLA releases the GIL, so chunks run at once.
     devices = jax.local_devices()
-    shared = [jax.device_put((motion, duration), d) for d in devices]
+    on_device = [jax.device_put((motion, duration), d) for d in devices]
 
     processes, me = jax.process_count(), jax.process_index()
     if processes > 1 and store is None:
@@ -402,79 +439,125 @@ def behavior_map(
         tmp.write_text(key)
         tmp.replace(manifest)  # atomic: other processes never read half of it
 
-    def run_chunk(k):
-        """A chunk's results: a dict of the `_FIELDS` arrays and "executed"."""
-        if store is None:
-            return compute_chunk(k)
-        path = store / f"chunk_{k:06d}.npz"
-        if k % processes != me:  # another process's chunk
-            _wait_for(path)
-        if path.exists():  # finished before an interruption: not recomputed
-            with np.load(path) as f:
-                return {n: f[n] for n in _FIELDS + ("executed",)}
-        out = compute_chunk(k)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, **out)
-        tmp.replace(path)  # atomic: no half-written chunk
-        return out
-
-    def chunk_inputs(k):
-        """The arguments of `_map_chunk` for chunk k, on its device, and the count."""
-        i, d = starts[k], k % len(devices)
-        count = min(chunk, n - i)
+    def chunk_args(k, index, inputs, shared, pilot):
+        """The arguments of `_map_chunk` for chunk k, the cells `index` of
+        `inputs` and `shared`, on the chunk's device."""
+        d, count = k % len(devices), index.size
 
         def pad(x):  # this chunk's cells, the last one repeated up to `padded`
-            x = np.asarray(x[i : i + count])
-            return np.concatenate([x, np.repeat(x[-1:], padded - count, axis=0)])
+            return np.asarray(x)[np.pad(index, (0, padded - count), mode="edge")]
 
         def part(tree):
             return jax.device_put(jax.tree_util.tree_map(pad, tree), devices[d])
 
-        d_motion, d_duration = shared[d]
-        m = d_motion if isinstance(motion, Record) else part(lane_motion)
-        args = (part(lane_lam), part(lane_r), part(lane_base), m, d_duration, opts)
-        return args, count
+        d_motion, d_duration = on_device[d]
+        lam_k, r_k, base_k, motion_k = inputs
+        m = d_motion if record else part(motion_k)
+        args = (part(lam_k), part(r_k), part(base_k), m, part(shared), d_duration)
+        flags = jax.device_put((np.asarray(count), np.asarray(pilot)), devices[d])
+        return args + (opts, flags[0], flags[1])
 
-    def compute_chunk(k):
-        args, count = chunk_inputs(k)
-        count_on_device = jax.device_put(np.asarray(count), devices[k % len(devices)])
-        out, executed = jax.device_get(_map_chunk(*args, count_on_device, LANES))
+    def compute(k, index, inputs, shared, pilot):
+        """Chunk k: its responses and carries (NumPy), executed and useful steps."""
+        args, count = chunk_args(k, index, inputs, shared, pilot), index.size
+        responses, carries, executed, useful = jax.device_get(_map_chunk(*args, LANES))
         _COMPILED.add(_signature(args))
-        return {f: np.asarray(getattr(out, f))[:count] for f in _FIELDS} | {
-            "executed": np.asarray(executed)
-        }
+        trim = lambda tree: jax.tree_util.tree_map(lambda x: x[:count], tree)  # noqa: E731
+        return trim(responses), trim(carries), int(executed), int(useful)
 
-    workers = max(len(devices), os.cpu_count() or 1)
+    def run_all(ks, fn, pool, bar):
+        """fn(k) for every k, in threads; unless the loop is compiled already,
+        the first runs alone (it compiles, the others then reuse the compile)."""
+        out = {}
+        if ks and _signature(chunk_args(*probe)) not in _COMPILED:
+            out[ks[0]] = fn(ks[0])
+            if bar is not None:
+                bar.update(1)
+        rest = ks[len(out) :]
+        for k, result in zip(rest, pool.map(fn, rest)):
+            out[k] = result
+            if bar is not None:
+                bar.update(1)
+        return out
+
+    # Pass 1: the pilots, from t = 0 to where their cells part ways.
+    proto = jax.eval_shape(
+        _initial_carry,
+        Block(lam[0], r[0]),
+        jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[2]),
+        motion if record else jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[3]),
+    )
+    blank = jax.tree_util.tree_map(
+        lambda s: np.zeros((pilots,) + s.shape, s.dtype), proto
+    )
+    chunks = -(-n // chunk)
+    pilot_chunks = [
+        np.arange(i, min(i + chunk, pilots)) for i in range(0, pilots, chunk)
+    ]
+    probe = (0, pilot_chunks[0], pilot_inputs, blank, True)
+    mine = [k for k in range(chunks) if k % processes == me]
+    stored = lambda k: store is not None and (store / f"chunk_{k:06d}.npz").exists()  # noqa: E731
+
     t = time.perf_counter()
-    with ThreadPoolExecutor(workers) as pool:
+    with ThreadPoolExecutor(max(len(devices), os.cpu_count() or 1)) as pool:
+        useful = executed = 0
+        if not all(stored(k) for k in mine):
+            done = run_all(
+                list(range(len(pilot_chunks))),
+                lambda k: compute(k, pilot_chunks[k], pilot_inputs, blank, True),
+                pool,
+                None,
+            )
+            carries = [done[k][1] for k in range(len(pilot_chunks))]
+            carries = jax.tree_util.tree_map(lambda *x: np.concatenate(x), *carries)
+            starts = jax.tree_util.tree_map(lambda x: x[pilot_of_cell], carries)
+            useful = sum(d[3] for d in done.values())
+            executed = sum(d[2] for d in done.values())
+            # Cells by start time (the most work first), dealt to the chunks in
+            # turn: chunks of equal work, and short analyses fill each one's tail.
+            order = np.argsort(starts.t, kind="stable")
+
+        def run_chunk(k):
+            """Chunk k's results: its cells ("index"), their `_FIELDS` arrays,
+            and the lane-steps "executed" and "useful"."""
+            path = None if store is None else store / f"chunk_{k:06d}.npz"
+            if path is not None and k % processes != me:  # another process's
+                _wait_for(path)
+            if path is not None and path.exists():  # from before an interruption
+                with np.load(path) as f:
+                    return {n: f[n] for n in _FIELDS + ("index", "executed", "useful")}
+            index = order[k::chunks]
+            responses, _, executed, useful = compute(
+                k, index, cell_inputs, starts, False
+            )
+            out = {f: np.asarray(getattr(responses, f)) for f in _FIELDS}
+            out |= {"index": index, "executed": executed, "useful": useful}
+            if path is not None:
+                tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+                np.savez(tmp, **out)
+                tmp.replace(path)  # atomic: no half-written chunk
+            return out
+
         bar = None
         if progress:
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=len(starts), desc="behavior map", unit="chunk")
-        # Other processes' chunks (read from the store) come last. Unless this
-        # map's loop is compiled already, this process's first chunk runs alone
-        # (it compiles, the others then reuse the compile).
-        ks = sorted(range(len(starts)), key=lambda k: (k % processes != me, k))
-        results = {}
-        if _signature(chunk_inputs(ks[0])[0]) not in _COMPILED:
-            results[ks[0]] = run_chunk(ks[0])
-            if bar is not None:
-                bar.update(1)
-        rest = ks[len(results) :]
-        for k, out in zip(rest, pool.map(run_chunk, rest)):
-            results[k] = out
-            if bar is not None:
-                bar.update(1)
+            bar = tqdm(total=chunks, desc="behavior map", unit="chunk")
+        # Other processes' chunks (read from the store) come last.
+        ks = sorted(range(chunks), key=lambda k: (k % processes != me, k))
+        results = list(run_all(ks, run_chunk, pool, bar).values())
         if bar is not None:
             bar.close()
-    results = [results[k] for k in range(len(starts))]
     seconds = time.perf_counter() - t
-    fields = {
-        k: np.concatenate([c[k] for c in results]).reshape(shape) for k in _FIELDS
-    }
-    useful = int(sum(c["steps"].sum() for c in results))
-    executed = int(sum(c["executed"] for c in results))
+    index = np.concatenate([c["index"] for c in results])
+    fields = {}
+    for f in _FIELDS:
+        values = np.concatenate([c[f] for c in results])
+        fields[f] = np.empty_like(values)
+        fields[f][index] = values
+        fields[f] = fields[f].reshape(shape)
+    useful += sum(int(c["useful"]) for c in results)
+    executed += sum(int(c["executed"]) for c in results)
     return BehaviorMap(
         slenderness=lam,
         size=r,

@@ -73,6 +73,45 @@ def test_chunking_does_not_change_results(linear_map):
         )
 
 
+def test_shared_translation_changes_no_bit(monkeypatch):
+    """Maps run each (base, motion, slenderness)'s pure-translation phase once
+    (a pilot) and start its cells from there; the same loop with every cell
+    run from t = 0 gives the very same numbers, step counts included."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    calls, original = [], _maps._map_chunk
+    monkeypatch.setattr(
+        _maps, "_map_chunk", lambda *a: calls.append(bool(a[-2])) or original(*a)
+    )
+    shared = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=None, progress=False)
+    assert calls == [True, False]  # the pilots, then the cells from their carries
+    lanes = _maps.LANES  # a map of 15 cells runs as one chunk of 64 lanes
+
+    def pad(x):
+        x = np.asarray(x)
+        return np.concatenate([x, np.repeat(x[-1:], lanes - x.size, axis=0)])
+
+    each = lambda tree: jax.tree_util.tree_map(  # noqa: E731
+        lambda x: pad(np.full(LAM.size * SIZE.size, x)), tree
+    )
+    lam, r = pad(np.repeat(LAM, SIZE.size)), pad(np.tile(SIZE, LAM.size))
+    bases, motions = each(base), each(PULSE)
+    initial = jax.vmap(_simulate._initial_carry)(jr.Block(lam, r), bases, motions)
+    initial = jax.tree_util.tree_map(np.asarray, initial)
+    opts = _simulate.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
+    duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
+    count, pilot = np.asarray(LAM.size * SIZE.size), np.asarray(False)
+    compiles = original._cached._cache_size()
+    *args, count, pilot = jax.device_put(  # committed to a device, as in maps
+        (lam, r, bases, motions, initial, duration, count, pilot), jax.devices()[0]
+    )
+    alone, *_ = original(*args, opts, count, pilot, lanes)
+    assert original._cached._cache_size() == compiles  # the map's own loop
+    for k in _maps._FIELDS:
+        expected = np.asarray(getattr(alone, k))[: int(count)]
+        expected = expected.reshape(shared.outcome.shape)
+        np.testing.assert_array_equal(getattr(shared, k), expected, err_msg=k)
+
+
 def test_progress_bar_counts_each_chunk_once(linear_map, capsys):
     """A compiled map runs all its chunks at once; the bar still ends at 4/4."""
     again = jr.behavior_map(
@@ -232,12 +271,12 @@ def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
     original = _maps._map_chunk
 
     def counting(*args):
-        calls.append(1)
+        calls.append(bool(args[-2]))  # pilot pass or not
         return original(*args)
 
     monkeypatch.setattr(_maps, "_map_chunk", counting)
     again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    assert len(calls) == 1
+    assert calls.count(False) == 1  # the pilots rerun (they are not stored)
     for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
         np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
     np.testing.assert_allclose(first.max_rotation, linear_map.max_rotation, rtol=1e-9)
