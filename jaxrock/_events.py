@@ -113,6 +113,27 @@ def condition_base(t, y, args: Args, **kwargs):
     return jnp.maximum(jnp.sign(u) * u_dot, args.max_base_displacement - jnp.abs(u))
 
 
+def newton_in_bracket(t, value, slope, lower, upper, inclusive: bool):
+    """One Newton step kept in a bracket, for a root of g with g > 0 at `lower`
+    and g <= 0 at `upper`: the bracket shrinks to t's side, and a step that
+    leaves it (or a zero slope) bisects instead. Returns (t, lower, upper).
+
+    `inclusive`: a step onto a bound is kept (a converged step stays put; the
+    flat loop's fixed number of iterations needs that), else it bisects.
+    """
+    positive = value > 0
+    lower = jnp.where(positive, t, lower)
+    upper = jnp.where(positive, upper, t)
+    newton = t - value / jnp.where(slope == 0, 1.0, slope)
+    if inclusive:
+        inside = (newton >= lower) & (newton <= upper)
+    else:
+        inside = (newton > lower) & (newton < upper)
+    inside = inside & (slope != 0) & jnp.isfinite(newton)
+    new = jnp.where(value == 0, t, jnp.where(inside, newton, 0.5 * (lower + upper)))
+    return new, lower, upper
+
+
 class _BracketState(eqx.Module):
     lower: Float[Array, ""]
     upper: Float[Array, ""]
@@ -150,14 +171,9 @@ class BracketedNewton(optx.AbstractRootFinder):
             return sum(jax.tree_util.tree_leaves(value)), aux
 
         value, slope, aux = jax.jvp(scalar, (y,), (jnp.ones_like(y),), has_aux=True)
-        positive = value > 0
-        lower = jnp.where(positive, y, state.lower)
-        upper = jnp.where(positive, state.upper, y)
-        newton = y - value / jnp.where(slope == 0, 1.0, slope)
-        inside = (slope != 0) & (newton > lower) & (newton < upper)
-        inside = inside & jnp.isfinite(newton)
-        new_y = jnp.where(inside, newton, 0.5 * (lower + upper))
-        new_y = jnp.where(value == 0, y, new_y)
+        new_y, lower, upper = newton_in_bracket(
+            y, value, slope, state.lower, state.upper, inclusive=False
+        )
         return new_y, _BracketState(lower, upper, jnp.abs(new_y - y)), aux
 
     def terminate(self, fn, y, args, options, state, tags):

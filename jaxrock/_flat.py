@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 
 from ._dynamics import Args, vector_field
+from ._events import newton_in_bracket
 from ._simulate import _setup, _setup_conditions, _transition
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
@@ -164,16 +165,7 @@ def _locate(a: _Attempt, opts):
     def newton_step(_, state):
         t, lower, upper = state
         value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
-        positive = value > 0
-        lower = jnp.where(positive, t, lower)
-        upper = jnp.where(positive, upper, t)
-        newton = t - value / jnp.where(slope == 0, 1.0, slope)
-        # Inclusive bounds: a converged Newton step (t itself) stays put.
-        inside = (slope != 0) & (newton >= lower) & (newton <= upper)
-        inside = inside & jnp.isfinite(newton)
-        bisect = 0.5 * (lower + upper)
-        t = jnp.where(value == 0, t, jnp.where(inside, newton, bisect))
-        return t, lower, upper
+        return newton_in_bracket(t, value, slope, lower, upper, inclusive=True)
 
     t, _, _ = jax.lax.fori_loop(0, _NEWTON, newton_step, (t, lower, upper), unroll=4)
     return t, interp.evaluate(t)

@@ -50,8 +50,9 @@ class MPPulse(AbstractGroundMotion):
 
     Ground velocity, for |t - t0| <= gamma / (2 f_p), zero elsewhere:
         v(t) = A/2 [1 + cos(2 pi f_p (t - t0) / gamma)] cos(2 pi f_p (t - t0) + nu)
-    and x_g'' = v'. `amplitude` A (m/s), `frequency` f_p (Hz) > 0, `gamma` > 1,
-    `phase` nu in degrees, `t0` (s) the envelope's peak; by default
+    and x_g'' = v'. `amplitude` A (m/s), `frequency` f_p (Hz) > 0,
+    1 < `gamma` <= 1e5, `phase` nu in degrees (|nu| <= 1e6), `t0` (s) the
+    envelope's peak; by default
     t0 = gamma / (2 f_p), so that the pulse starts at t = 0.
     """
 
@@ -71,8 +72,10 @@ class MPPulse(AbstractGroundMotion):
     def __check_init__(self):
         check("amplitude", self.amplitude, lambda v: v == v, "finite")
         positive("frequency", self.frequency)
-        check("gamma", self.gamma, lambda v: v > 1, "finite and > 1")
-        check("phase", self.phase, lambda v: v == v, "finite (degrees)")
+        # `sincos` is exact for arguments below 8e5 rad; the pulse's stay below
+        # pi gamma + |nu|, so both get a bound far above any physical pulse.
+        check("gamma", self.gamma, lambda v: (v > 1) & (v <= 1e5), "> 1 and <= 1e5")
+        check("phase", self.phase, lambda v: abs(v) <= 1e6, "within +-1e6 degrees")
         check("t0", self.t0, lambda v: v == v, "finite")
 
     @property

@@ -332,7 +332,10 @@ def behavior_map(
     Cells run `chunk_size` at a time (`None`: all at once) through one compiled
     loop on `LANES` (64) vmapped lanes; each iteration advances every lane by one
     solver step, and a lane that finishes takes the chunk's next cell (the
-    "flat loop", `_flat.py`). Chunks run one thread per CPU core. `progress`
+    "flat loop", `_flat.py`). The pure-translation phase before uplift runs
+    once per base, motion and slenderness (see `_map_chunk`), and the cells,
+    ordered by where that leaves them, are dealt to the chunks in turn (equal
+    work per chunk). Chunks run one thread per CPU core. `progress`
     shows a tqdm bar (default: when there is more than one chunk). New grids,
     pulses or isolator parameters reuse the compile.
 

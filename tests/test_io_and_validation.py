@@ -106,6 +106,8 @@ def test_simulate_real_record_runs_and_rocks():
         (lambda: jr.FrictionPendulum(0.1, -2.0, 0.5), "radius"),
         (lambda: jr.FrictionPendulum(-0.1, 2.0, 0.5), "friction"),
         (lambda: jr.MPPulse(1.0, 0.5, 1.0, 0.0), "gamma"),
+        (lambda: jr.MPPulse(1.0, 0.5, 2e5, 0.0), "gamma"),
+        (lambda: jr.MPPulse(1.0, 0.5, 2.0, 5e7), "phase"),
         (lambda: jr.MPPulse(1.0, -0.5, 2.0, 0.0), "frequency"),
         (lambda: jr.MPPulse(float("nan"), 0.5, 2.0, 0.0), "amplitude"),
         (lambda: jr.Record([0.0, float("nan"), 1.0], 0.01), "acceleration"),
@@ -138,7 +140,7 @@ def test_bad_input_names_parameter(make, name):
 def test_error_message_states_range():
     with pytest.raises(ValueError, match=r"`size` must be finite and > 0, got -1.0"):
         jr.Block(3.0, -1.0)
-    with pytest.raises(ValueError, match=r"`gamma` must be finite and > 1, got 0.5"):
+    with pytest.raises(ValueError, match=r"`gamma` must be > 1 and <= 1e5, got 0.5"):
         jr.MPPulse(1.0, 0.5, 0.5, 0.0)
 
 
