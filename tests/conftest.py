@@ -4,7 +4,7 @@ import tempfile
 import matplotlib
 
 matplotlib.use("Agg")
-# Notebooks (run by nbmake) take their small configuration.
+# Notebooks (run by tests/test_notebooks.py) take their small configuration.
 os.environ.setdefault("JAXROCK_SMALL", "1")
 # One XLA compilation cache for this run, shared by the xdist workers, the
 # notebooks' kernels and the subprocesses (much of the suite's time is
