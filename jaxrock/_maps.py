@@ -431,6 +431,7 @@ def behavior_map(
                 options=_leaf_digest(opts),
                 solver=repr(opts.solver),
                 max_segments=opts.max_segments,
+                layout="cells dealt by start",  # chunks list their cells
             )
         )
         manifest = store / "manifest.json"
@@ -517,8 +518,12 @@ def behavior_map(
             useful = sum(d[3] for d in done.values())
             executed = sum(d[2] for d in done.values())
             # Cells by start time (the most work first), dealt to the chunks in
-            # turn: chunks of equal work, and short analyses fill each one's tail.
-            order = np.argsort(starts.t, kind="stable")
+            # turn: chunks of equal work, and short analyses fill each one's
+            # tail. Several processes deal in grid order (still balanced), which
+            # cannot depend on the last bits of their pilots' times.
+            order = np.arange(n)
+            if processes == 1:
+                order = np.argsort(starts.t, kind="stable")
 
         def run_chunk(k):
             """Chunk k's results: its cells ("index"), their `_FIELDS` arrays,
@@ -553,6 +558,11 @@ def behavior_map(
             bar.close()
     seconds = time.perf_counter() - t
     index = np.concatenate([c["index"] for c in results])
+    if not np.array_equal(np.sort(index), np.arange(n)):
+        raise RuntimeError(
+            "the chunks do not hold every cell exactly once (a store written by "
+            "processes that dealt the cells differently?)"
+        )
     fields = {}
     for f in _FIELDS:
         values = np.concatenate([c[f] for c in results])
