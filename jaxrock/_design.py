@@ -78,6 +78,12 @@ def responses(
     return jax.tree_util.tree_map(lambda x: x.reshape(shape), out)
 
 
+def _objective(base, blocks, motions, capacity, penalty, opts):
+    r = responses(base, blocks, motions, opts=opts)
+    excess = jnp.maximum(r.max_base_displacement / capacity - 1.0, 0.0)
+    return jnp.mean(r.max_rotation) + penalty * jnp.mean(excess**2), r
+
+
 def isolator_objective(
     make_base: Callable[[dict], AbstractIsolator],
     blocks: Block,
@@ -95,10 +101,7 @@ def isolator_objective(
     """
 
     def objective(params):
-        r = responses(make_base(params), blocks, motions, opts=opts)
-        excess = jnp.maximum(r.max_base_displacement / capacity - 1.0, 0.0)
-        value = jnp.mean(r.max_rotation) + penalty * jnp.mean(excess**2)
-        return value, r
+        return _objective(make_base(params), blocks, motions, capacity, penalty, opts)
 
     return objective
 
@@ -106,13 +109,15 @@ def isolator_objective(
 class DesignResult(eqx.Module):
     """History of an isolator optimisation, one row per evaluated iterate.
 
-    params: name -> array (steps + 1,); objective (steps + 1,); max_rotation,
+    params: name -> array (steps + 1,); objective (steps + 1,); gradient: name ->
+    dJ/dp (steps + 1,) in the parameter's units; max_rotation,
     max_base_displacement, overturned: (steps + 1, n_blocks, n_motions); best:
     the parameters with the lowest objective.
     """
 
     params: dict
     objective: np.ndarray
+    gradient: dict
     max_rotation: np.ndarray
     max_base_displacement: np.ndarray
     overturned: np.ndarray
@@ -120,21 +125,24 @@ class DesignResult(eqx.Module):
 
 
 @eqx.filter_jit
-def _value_and_grad(make_base, x, lo, width, blocks, motions, capacity, penalty, opts):
-    """Objective, its forward-mode gradient in x = (p - low) / width, responses.
+def _value_and_grad(base, tangents, blocks, motions, capacity, penalty, opts):
+    """Objective at `base`, its derivatives along each of `tangents` (the base's
+    derivative in each design variable, stacked on a leading axis; forward
+    mode), and the responses.
 
-    Module-level, so a second `tune_isolator` with the same `make_base` (and
-    shapes) reuses the compile; `capacity` and `penalty` are traced.
+    Free of `make_base` (the chain rule through it is taken outside), so every
+    tuning of one isolator type with as many design variables (and the same
+    shapes) shares the compile, whatever function builds the isolator.
     """
-    objective = isolator_objective(
-        make_base, blocks, motions, capacity=capacity, penalty=penalty, opts=opts
-    )
 
-    def with_aux(x):
-        value, r = objective({k: lo[k] + width[k] * x[k] for k in x})
+    def objective(base):
+        value, r = _objective(base, blocks, motions, capacity, penalty, opts)
         return value, (value, r)
 
-    grad, (value, r) = jax.jacfwd(with_aux, has_aux=True)(x)
+    def push(tangent):
+        return jax.jvp(objective, (base,), (tangent,), has_aux=True)
+
+    _, grad, (value, r) = jax.vmap(push, out_axes=(None, 0, None))(tangents)
     return value, grad, r
 
 
@@ -160,8 +168,9 @@ def tune_isolator(
     each name to (low, high), enforced by projection after every update. The
     default optimiser is Adam on parameters scaled by their bounds' width, so one
     learning rate suits seconds and damping ratios alike. Gradients are forward
-    mode through the whole simulation (one compile per `make_base` function and
-    shapes: calling again with the same `make_base` reuses it).
+    mode through the whole simulation; one compile per isolator type, number of
+    design variables and shapes, shared by every `make_base` (a new lambda
+    does not recompile).
     """
     names = sorted(init)
     if set(bounds) != set(names):
@@ -176,8 +185,6 @@ def tune_isolator(
     width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
     opts = SolverOptions(rtol=rtol, atol=atol)
     problem = (
-        {k: jnp.asarray(v) for k, v in lo.items()},
-        {k: jnp.asarray(v) for k, v in width.items()},
         blocks,
         motions,
         jnp.asarray(capacity, dtype=float),
@@ -185,8 +192,17 @@ def tune_isolator(
         opts,
     )
 
+    def base_at(x):
+        return make_base({k: lo[k] + width[k] * x[k] for k in names})
+
     def value_and_grad(x):
-        return _value_and_grad(make_base, x, *problem)
+        # d base / d x_k by forward mode through `make_base` (eager and cheap),
+        # then the chain rule inside the compiled simulation.
+        units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
+        tangents = [jax.jvp(base_at, (x,), (u,))[1] for u in units]
+        tangents = jax.tree_util.tree_map(lambda *t: jnp.stack(t), *tangents)
+        value, grad, r = _value_and_grad(base_at(x), tangents, *problem)
+        return value, {k: grad[i] for i, k in enumerate(names)}, r
 
     optimizer = optimizer or optax.adam(learning_rate)
     x = {k: jnp.asarray((init[k] - lo[k]) / width[k]) for k in names}
@@ -198,6 +214,7 @@ def tune_isolator(
             (
                 {k: lo[k] + width[k] * float(x[k]) for k in names},
                 float(value),
+                {k: float(grad[k]) / width[k] for k in names},
                 np.asarray(r.max_rotation),
                 np.asarray(r.max_base_displacement),
                 np.asarray(r.outcome) == Outcome.OVERTURNED,
@@ -214,8 +231,9 @@ def tune_isolator(
     return DesignResult(
         params={k: np.array([row[0][k] for row in rows]) for k in names},
         objective=values,
-        max_rotation=np.stack([row[2] for row in rows]),
-        max_base_displacement=np.stack([row[3] for row in rows]),
-        overturned=np.stack([row[4] for row in rows]),
+        gradient={k: np.array([row[2][k] for row in rows]) for k in names},
+        max_rotation=np.stack([row[3] for row in rows]),
+        max_base_displacement=np.stack([row[4] for row in rows]),
+        overturned=np.stack([row[5] for row in rows]),
         best=best,
     )
