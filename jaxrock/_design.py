@@ -136,14 +136,12 @@ def _value_and_grad(base, tangents, blocks, motions, capacity, penalty, opts):
     """
 
     def objective(base):
-        value, r = _objective(base, blocks, motions, capacity, penalty, opts)
-        return value, (value, r)
+        return _objective(base, blocks, motions, capacity, penalty, opts)
 
     def push(tangent):
         return jax.jvp(objective, (base,), (tangent,), has_aux=True)
 
-    _, grad, (value, r) = jax.vmap(push, out_axes=(None, 0, None))(tangents)
-    return value, grad, r
+    return jax.vmap(push, out_axes=(None, 0, None))(tangents)
 
 
 def tune_isolator(
@@ -195,10 +193,11 @@ def tune_isolator(
     def base_at(x):
         return make_base({k: lo[k] + width[k] * x[k] for k in names})
 
+    units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
+
     def value_and_grad(x):
         # d base / d x_k by forward mode through `make_base` (eager and cheap),
         # then the chain rule inside the compiled simulation.
-        units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
         tangents = [jax.jvp(base_at, (x,), (u,))[1] for u in units]
         tangents = jax.tree_util.tree_map(lambda *t: jnp.stack(t), *tangents)
         value, grad, r = _value_and_grad(base_at(x), tangents, *problem)

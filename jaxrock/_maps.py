@@ -400,8 +400,9 @@ def behavior_map(
     pb, pm, pl = np.unravel_index(np.arange(pilots), (n_base, n_motion, lam.size))
     pilot_inputs = cells(pb, pm, pl, np.zeros_like(pl))
     cell_inputs = cells(ib, im, il, ir)
+    chunks = -(-n // chunk)
     if progress is None:
-        progress = -(-n // chunk) > 1
+        progress = chunks > 1
     duration = as_float(duration)
     # Chunks go round-robin to the local devices (GPUs, or several CPU devices
     # with XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread
@@ -494,7 +495,6 @@ def behavior_map(
     blank = jax.tree_util.tree_map(
         lambda s: np.zeros((pilots,) + s.shape, s.dtype), proto
     )
-    chunks = -(-n // chunk)
     pilot_chunks = [
         np.arange(i, min(i + chunk, pilots)) for i in range(0, pilots, chunk)
     ]
@@ -563,12 +563,11 @@ def behavior_map(
             "the chunks do not hold every cell exactly once (a store written by "
             "processes that dealt the cells differently?)"
         )
-    fields = {}
-    for f in _FIELDS:
-        values = np.concatenate([c[f] for c in results])
-        fields[f] = np.empty_like(values)
-        fields[f][index] = values
-        fields[f] = fields[f].reshape(shape)
+    cell_order = np.argsort(index)  # the results in grid order
+    fields = {
+        f: np.concatenate([c[f] for c in results])[cell_order].reshape(shape)
+        for f in _FIELDS
+    }
     useful += sum(int(c["useful"]) for c in results)
     executed += sum(int(c["executed"]) for c in results)
     return BehaviorMap(

@@ -6,15 +6,11 @@ import matplotlib
 matplotlib.use("Agg")
 # Notebooks (run by tests/test_notebooks.py) take their small configuration.
 os.environ.setdefault("JAXROCK_SMALL", "1")
-# One XLA compilation cache for this run, shared by the xdist workers, the
-# notebooks' kernels and the subprocesses (much of the suite's time is
-# compiling): a fresh folder per run, so every run still compiles everything once.
-_run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+# One XLA compilation cache for this run, shared with the subprocesses (CLI,
+# devices): much of the suite's time is compiling. A fresh folder per run, so
+# every run still compiles everything once.
 os.environ.setdefault(
-    "JAX_COMPILATION_CACHE_DIR",
-    os.path.join(tempfile.gettempdir(), f"jaxrock-xla-cache-{_run}")
-    if _run
-    else tempfile.mkdtemp(prefix="jaxrock-xla-cache-"),
+    "JAX_COMPILATION_CACHE_DIR", tempfile.mkdtemp(prefix="jaxrock-xla-cache-")
 )
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 
