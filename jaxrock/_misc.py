@@ -42,3 +42,15 @@ def positive(name: str, x) -> None:
 
 def nonnegative(name: str, x) -> None:
     check(name, x, lambda v: v >= 0, "finite and >= 0")
+
+
+def first_true(conditions, values, default):
+    """`jnp.select` as nested `where`s: the value of the first true condition.
+
+    Elementwise, so XLA fuses it with its neighbours (`jnp.select` takes an
+    argmax, a reduction that splits fusions: costly in the flat loop of maps).
+    """
+    out = default
+    for condition, value in zip(reversed(conditions), reversed(values)):
+        out = jnp.where(condition, value, out)
+    return out

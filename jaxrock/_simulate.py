@@ -37,7 +37,7 @@ from ._events import (
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase
-from ._misc import as_float, nonnegative, positive
+from ._misc import as_float, first_true, nonnegative, positive
 
 
 class Outcome(IntEnum):
@@ -339,7 +339,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     theta = jnp.where(hit_ground | uplift | settled, 0.0, theta)
     theta_dot = jnp.where(settled, 0.0, theta_dot)
 
-    new_phase = jnp.select(
+    new_phase = first_true(
         [
             uplift,
             apex,
@@ -401,7 +401,7 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
         ),
         c.status,
     )
-    kind = jnp.select(
+    kind = first_true(
         [
             failed,
             uplift,

@@ -61,11 +61,15 @@ def sincos(x):
     half = 0.5 * z
     w = 1.0 - half
     cos = w + (((1.0 - w) - half) + (z * z * _horner(z, _C) - y * dy))
-    quadrant = n.astype(jnp.int32) & 3
-    first = [quadrant == 0, quadrant == 1, quadrant == 2]
+    # Quadrant q: (sin, cos) x = (s, c), (c, -s), (-s, -c), (-c, s). Elementwise
+    # (`jnp.select` is an argmax, a reduction that splits XLA's fusions).
+    quadrant = n.astype(jnp.int32)
+    odd = (quadrant & 1) == 1
+    sin_sign = jnp.where((quadrant & 2) == 2, -1.0, 1.0)
+    cos_sign = jnp.where(((quadrant + 1) & 2) == 2, -1.0, 1.0)
     return (
-        jnp.select(first, [sin, cos, -sin], -cos),
-        jnp.select(first, [cos, -sin, -cos], sin),
+        sin_sign * jnp.where(odd, cos, sin),
+        cos_sign * jnp.where(odd, sin, cos),
     )
 
 
