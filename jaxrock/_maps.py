@@ -96,58 +96,58 @@ def _map_chunk(
         c = _select(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
-    def results(c, block, before):
-        return _response(c, block, opts), before
-
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
-    blocks = lanes(cell0)[0]
     c0 = start(cell0)
     out = jax.tree_util.tree_map(
         lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype),
-        jax.vmap(results)(c0, blocks, c0),
+        (jax.vmap(_response, in_axes=(0, 0, None))(c0, lanes(cell0)[0], opts), c0),
     )
 
-    def refill(c, cell, queue, out, finished, blocks, before):
-        """Finished lanes write their results and take the queue's next cells."""
+    def steps(c, cell, inputs, executed, useful):
+        """Step every lane until one or more finish: the lanes whose analysis is
+        done, or with `pilot` whose shared phase ends (these keep their carry
+        from before that attempt). No cell changes here, so the lanes' inputs
+        are gathered once (in `refill`), not at every step."""
+
+        def body(state):
+            c, _, executed, useful = state
+            new, a = flat_step(c, *inputs, duration, opts, axes)
+            taken = new.steps - c.steps
+            ended = new.done | (new.segments >= opts.max_segments)
+            leaves = new.rocked | (a.t1 >= inputs[2].end_time)  # the shared phase
+            finished = (cell < n) & (ended | (pilot & leaves))
+            new = _select(pilot & finished, c, new)
+            return (
+                new,
+                finished,
+                executed + jnp.max(taken) * width,
+                useful + jnp.sum(taken),
+            )
+
+        state = (c, jnp.zeros_like(cell, dtype=bool), executed, useful)
+        return jax.lax.while_loop(lambda s: ~jnp.any(s[1]), body, state)
+
+    def refill(state):
+        """Steps until lanes finish; they write their results and take the
+        queue's next cells."""
+        c, cell, queue, out, executed, useful, inputs = state
+        c, finished, executed, useful = steps(c, cell, inputs, executed, useful)
         index = jnp.where(finished, cell, n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
             lambda o, r: o.at[index].set(r, mode="drop"),
             out,
-            jax.vmap(results)(c, blocks, before),
+            (jax.vmap(_response, in_axes=(0, 0, None))(c, inputs[0], opts), c),
         )
-        new_cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
-        new_cell = jnp.where(finished & (new_cell >= count), n, new_cell)
-        c = _select(finished, start(new_cell), c)
-        return c, new_cell, queue + jnp.sum(finished), out
-
-    def body(state):
-        before, cell, queue, out, executed, useful = state
-        inputs = lanes(cell)
-        c, a = flat_step(before, *inputs, duration, opts, axes)
-        executed = executed + jnp.max(c.steps - before.steps) * width
-        useful = useful + jnp.sum(c.steps - before.steps)
-        ended = c.done | (c.segments >= opts.max_segments)
-        leaves = c.rocked | (a.t1 >= inputs[2].end_time)  # the shared phase
-        finished = (cell < n) & (ended | (pilot & leaves))
-        # Most iterations finish no lane: then nothing is written.
-        c, cell, queue, out = jax.lax.cond(
-            jnp.any(finished),
-            refill,
-            lambda c, cell, queue, out, *_: (c, cell, queue, out),
-            c,
-            cell,
-            queue,
-            out,
-            finished,
-            inputs[0],
-            before,
-        )
-        return c, cell, queue, out, executed, useful
+        cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
+        cell = jnp.where(finished & (cell >= count), n, cell)
+        c = _select(finished, start(cell), c)
+        inputs = _select(finished, lanes(cell), inputs)
+        return c, cell, queue + jnp.sum(finished), out, executed, useful, inputs
 
     zero = jnp.asarray(0)
-    state = (c0, cell0, jnp.asarray(width), out, zero, zero)
-    state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), body, state)
-    (responses, carries), executed, useful = state[3:]
+    state = (c0, cell0, jnp.asarray(width), out, zero, zero, lanes(cell0))
+    state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), refill, state)
+    (responses, carries), executed, useful = state[3:6]
     return responses, carries, executed, useful
 
 
