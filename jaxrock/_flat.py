@@ -17,6 +17,7 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._dynamics import Args, vector_field
 from ._events import newton_in_bracket
@@ -26,6 +27,9 @@ from ._simulate import _setup, _setup_conditions, _transition
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
 # double roots of theta' the bracket falls back to bisection).
 _NEWTON = 8
+# ... or fewer: a step below a few ulps of t has converged (quadratically: the
+# next would not move it).
+_CONVERGED = 4 * float(np.finfo(np.float64).eps)
 
 
 def _clip(t0, t1, times):
@@ -162,12 +166,18 @@ def _locate(a: _Attempt, opts):
     t = a.t0 + (a.t1 - a.t0) * a.g0 / jnp.where(a.g0 == a.g1, 1.0, a.g0 - a.g1)
     t = jnp.clip(t, a.t0, a.t1)
 
-    def newton_step(_, state):
-        t, lower, upper = state
+    def newton_step(state):
+        i, t, lower, upper, _ = state
         value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
-        return newton_in_bracket(t, value, slope, lower, upper, inclusive=True)
+        new, lower, upper = newton_in_bracket(t, value, slope, lower, upper, True)
+        return i + 1, new, lower, upper, jnp.abs(new - t) <= _CONVERGED * jnp.abs(t)
 
-    t, _, _ = jax.lax.fori_loop(0, _NEWTON, newton_step, (t, lower, upper), unroll=4)
+    def going(state):
+        i, _, _, _, converged = state
+        return (i < _NEWTON) & ~converged
+
+    state = (0, t, lower, upper, jnp.asarray(False))
+    _, t, _, _, _ = jax.lax.while_loop(going, newton_step, state)
     return t, interp.evaluate(t)
 
 
