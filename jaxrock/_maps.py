@@ -141,7 +141,10 @@ def _map_chunk(
         cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)
         c = _select(finished, start(cell), c)
-        inputs = _select(finished, lanes(cell), inputs)
+        if record:  # one motion for every lane
+            inputs = _select(finished, lanes(cell)[:2], inputs[:2]) + (motion,)
+        else:
+            inputs = _select(finished, lanes(cell), inputs)
         return c, cell, queue + jnp.sum(finished), out, executed, useful, inputs
 
     zero = jnp.asarray(0)
