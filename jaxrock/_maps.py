@@ -61,7 +61,8 @@ def _map_chunk(
     shape). Each iteration of the vmapped loop advances every lane by one step
     attempt (`flat_step`); a lane whose analysis is done writes its result and
     takes the chunk's next cell at once, so lanes wait for each other only at
-    the chunk's end.
+    the chunk's end. (An inner loop steps the lanes until one finishes and the
+    outer one refills: no `lax.cond` in every step, whose outputs XLA copies.)
 
     The pure-translation phase is shared (see `behavior_map`): until it uplifts a
     block moves with its base as one body, and neither the steps nor the events
