@@ -118,8 +118,8 @@ def newton_in_bracket(t, value, slope, lower, upper, inclusive: bool):
     and g <= 0 at `upper`: the bracket shrinks to t's side, and a step that
     leaves it (or a zero slope) bisects instead. Returns (t, lower, upper).
 
-    `inclusive`: a step onto a bound is kept (a converged step stays put; the
-    flat loop's fixed number of iterations needs that), else it bisects.
+    `inclusive`: a step onto a bound is kept (a converged step stays put, and
+    the flat loop stops once its steps are below a few ulps), else it bisects.
     """
     positive = value > 0
     lower = jnp.where(positive, t, lower)

@@ -83,39 +83,45 @@ def _map_chunk(
     axes = (0, 0, None if record else 0)
 
     def lanes(cell):
+        """The cells' block, base and motion, each with a lane axis (the motion
+        None for a record: one motion for every lane, see `inputs`)."""
         cell = jnp.minimum(cell, n - 1)
         take = lambda tree: jax.tree_util.tree_map(lambda x: x[cell], tree)  # noqa: E731
-        return (
-            Block(slenderness[cell], size[cell]),
-            take(base),
-            motion if record else take(motion),
-        )
+        lane_motion = None if record else take(motion)
+        return Block(slenderness[cell], size[cell]), take(base), lane_motion
 
-    def start(cell):
-        c = jax.vmap(_initial_carry, in_axes=axes)(*lanes(cell))
+    def inputs(per_lane):
+        """`lanes`' output as `flat_step` takes it (batched as `axes` says)."""
+        block, lane_base, lane_motion = per_lane
+        return block, lane_base, motion if record else lane_motion
+
+    def start(cell, per_lane):
+        c = jax.vmap(_initial_carry, in_axes=axes)(*inputs(per_lane))
         later = jax.tree_util.tree_map(lambda x: x[jnp.minimum(cell, n - 1)], shared)
         c = _select(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
-    c0 = start(cell0)
+    per_lane0 = lanes(cell0)
+    c0 = start(cell0, per_lane0)
     out = jax.tree_util.tree_map(
         lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype),
-        (jax.vmap(_response, in_axes=(0, 0, None))(c0, lanes(cell0)[0], opts), c0),
+        (jax.vmap(_response, in_axes=(0, 0, None))(c0, per_lane0[0], opts), c0),
     )
 
-    def steps(c, cell, inputs, executed, useful):
+    def steps(c, cell, per_lane, executed, useful):
         """Step every lane until one or more finish: the lanes whose analysis is
         done, or with `pilot` whose shared phase ends (these keep their carry
         from before that attempt). No cell changes here, so the lanes' inputs
         are gathered once (in `refill`), not at every step."""
+        block, lane_base, lane_motion = inputs(per_lane)
 
         def body(state):
             c, _, executed, useful = state
-            new, a = flat_step(c, *inputs, duration, opts, axes)
+            new, a = flat_step(c, block, lane_base, lane_motion, duration, opts, axes)
             taken = new.steps - c.steps
             ended = new.done | (new.segments >= opts.max_segments)
-            leaves = new.rocked | (a.t1 >= inputs[2].end_time)  # the shared phase
+            leaves = new.rocked | (a.t1 >= lane_motion.end_time)  # the shared phase
             finished = (cell < n) & (ended | (pilot & leaves))
             new = _select(pilot & finished, c, new)
             return (
@@ -131,25 +137,23 @@ def _map_chunk(
     def refill(state):
         """Steps until lanes finish; they write their results and take the
         queue's next cells."""
-        c, cell, queue, out, executed, useful, inputs = state
-        c, finished, executed, useful = steps(c, cell, inputs, executed, useful)
+        c, cell, queue, out, executed, useful, per_lane = state
+        c, finished, executed, useful = steps(c, cell, per_lane, executed, useful)
         index = jnp.where(finished, cell, n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
             lambda o, r: o.at[index].set(r, mode="drop"),
             out,
-            (jax.vmap(_response, in_axes=(0, 0, None))(c, inputs[0], opts), c),
+            (jax.vmap(_response, in_axes=(0, 0, None))(c, per_lane[0], opts), c),
         )
         cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)
-        c = _select(finished, start(cell), c)
-        if record:  # one motion for every lane
-            inputs = _select(finished, lanes(cell)[:2], inputs[:2]) + (motion,)
-        else:
-            inputs = _select(finished, lanes(cell), inputs)
-        return c, cell, queue + jnp.sum(finished), out, executed, useful, inputs
+        fresh = lanes(cell)
+        c = _select(finished, start(cell, fresh), c)
+        per_lane = _select(finished, fresh, per_lane)
+        return c, cell, queue + jnp.sum(finished), out, executed, useful, per_lane
 
     zero = jnp.asarray(0)
-    state = (c0, cell0, jnp.asarray(width), out, zero, zero, lanes(cell0))
+    state = (c0, cell0, jnp.asarray(width), out, zero, zero, per_lane0)
     state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), refill, state)
     (responses, carries), executed, useful = state[3:6]
     return responses, carries, executed, useful

@@ -129,7 +129,7 @@ def test_record_with_long_quiet_tail():
         assert int(a.status) == int(b.status) == jr.Status.SUCCESS
         assert int(a.outcome) == int(b.outcome) and int(a.impacts) == int(b.impacts)
         assert float(b.max_rotation) == pytest.approx(float(a.max_rotation), rel=1e-7)
-    lam, size = [2.5, 4.0], [0.5, 1.5]
+    lam, size, base = [2.5, 4.0], [0.5, 1.5], jr.LinearIsolator(2.0, 0.35, 0.5)
     bm = jr.behavior_map(lam, size, base, padded, duration=8.0)
     for i, j in np.ndindex(2, 2):
         one = jr.simulate(jr.Block(lam[i], size[j]), base, padded, duration=8.0)
