@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from ._block import Block
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase
-from ._misc import GRAVITY
+from ._misc import GRAVITY, computed_once
 from ._trig import sincos
 
 
@@ -87,8 +87,11 @@ def vector_field(t, y, args: Args):
 def absolute_base_acceleration(t, base_state, base, motion):
     """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
     if isinstance(base, FixedBase):
-        return motion.acceleration(t)
-    return -base.force(base_state)
+        a = motion.acceleration(t)
+    else:
+        a = -base.force(base_state)
+    # Read by both uplift conditions and much of the transition.
+    return computed_once(a)
 
 
 def restitution(block: Block, base: AbstractIsolator):

@@ -21,6 +21,7 @@ import numpy as np
 
 from ._dynamics import Args, vector_field
 from ._events import newton_in_bracket
+from ._misc import computed_once
 from ._simulate import _setup, _setup_conditions, _transition
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
@@ -30,6 +31,9 @@ _NEWTON = 8
 # ... or fewer: a step below a few ulps of t has converged (quadratically: the
 # next would not move it).
 _CONVERGED = 4 * float(np.finfo(np.float64).eps)
+# An event counts as located when the last Newton step is below these (those of
+# `simulate`'s root finder); else the lane retries a shorter step (`_finish`).
+_LOCATED_RTOL, _LOCATED_ATOL = 1e-14, 1e-12
 
 
 def _clip(t0, t1, times):
@@ -121,6 +125,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
     if _unrollable(solver):
         y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args)
+        y1, y_error = computed_once((y1, y_error))  # read by most of the step
         solver_result = diffrax.RESULTS.successful
     else:
         state = solver.init(term, t0, t1, y0, args)
@@ -151,12 +156,18 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
 
 def _locate(a: _Attempt, opts):
     """The event's time and state: bracketed Newton on [t0, t1] (the condition is
-    > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant."""
+    > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
+
+    Also returns whether Newton converged within `_NEWTON` iterations, and the
+    bracket's upper end (the condition <= 0 there). From a poor start (a root
+    close to t0 in a long step, where the secant is far off) it may not: the
+    lane then retries a shorter step (see `_finish`).
+    """
     conditions = _setup_conditions(a.args.base)
-    interp = opts.solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense)
+    evaluate = opts.solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense).evaluate
 
     def g(t):
-        y = interp.evaluate(t)
+        y = evaluate(t)
         return sum(
             jnp.where(h, cond(t, y, a.args), 0.0)
             for h, cond in zip(a.fired, conditions)
@@ -170,23 +181,31 @@ def _locate(a: _Attempt, opts):
         i, t, lower, upper, _ = state
         value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
         new, lower, upper = newton_in_bracket(t, value, slope, lower, upper, True)
-        return i + 1, new, lower, upper, jnp.abs(new - t) <= _CONVERGED * jnp.abs(t)
+        return i + 1, new, lower, upper, jnp.abs(new - t)
 
     def going(state):
-        i, _, _, _, converged = state
-        return (i < _NEWTON) & ~converged
+        i, t, _, _, step = state
+        return (i < _NEWTON) & (step > _CONVERGED * jnp.abs(t))
 
-    state = (0, t, lower, upper, jnp.asarray(False))
-    _, t, _, _, _ = jax.lax.while_loop(going, newton_step, state)
-    return t, interp.evaluate(t)
+    state = (0, t, lower, upper, jnp.asarray(jnp.inf, dtype=t.dtype))
+    _, t, _, upper, step = jax.lax.while_loop(going, newton_step, state)
+    converged = step <= _LOCATED_RTOL * jnp.abs(t) + _LOCATED_ATOL
+    return t, evaluate(t), converged, upper
 
 
-def _finish(c, a: _Attempt, t_event, y_event, block, base, motion, duration, opts):
-    """The lane's new carry: the step's end, or the event and its transition."""
-    event = a.event
-    t_end = jnp.where(event, t_event, jnp.where(a.keep, a.t1, a.t0))
+def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
+    """The lane's new carry: the step's end, or the event and its transition.
+
+    An event whose root find did not converge rejects the step, and the next
+    attempt is shorter and ends closer to the root (a better start).
+    """
+    t_event, y_event, converged, upper = located
+    retry = a.event & ~converged
+    event = a.event & converged
+    keep = a.keep & ~retry
+    t_end = jnp.where(event, t_event, jnp.where(keep, a.t1, a.t0))
     y_end = jax.tree_util.tree_map(
-        lambda a1, a0, e: jnp.where(event, e, jnp.where(a.keep, a1, a0)),
+        lambda a1, a0, e: jnp.where(event, e, jnp.where(keep, a1, a0)),
         a.y1,
         a.y0,
         y_event,
@@ -198,7 +217,10 @@ def _finish(c, a: _Attempt, t_event, y_event, block, base, motion, duration, opt
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     new = _transition(c, sol, block, base, motion, duration, opts)
     # The next step: the controller's proposal (not the mean step of a segment).
-    return eqx.tree_at(lambda n: n.dt, new, a.next_dt)
+    # After an unlocated event: at most half the step, ending at or before the
+    # bracket's upper end (so each retry gets closer).
+    retry_dt = jnp.minimum(upper - a.t0, 0.5 * (a.t1 - a.t0))
+    return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, a.next_dt))
 
 
 # Lanes whose events are located together (a batch of the root find).
@@ -228,21 +250,22 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     )
 
     def locate_batch(state):
-        j, t_event, y_event = state
+        j, located = state
         take = jax.lax.dynamic_slice(order, (j * batch,), (batch,))
         take = jnp.where(j * batch + jnp.arange(batch) < count, take, lanes)
         sub = jax.tree_util.tree_map(lambda x: x[jnp.minimum(take, lanes - 1)], a)
-        t, y = jax.vmap(_locate, in_axes=(0, None))(sub, opts)
-        t_event = t_event.at[take].set(t, mode="drop")
-        y_event = jax.tree_util.tree_map(
-            lambda old, new: old.at[take].set(new, mode="drop"), y_event, y
+        found = jax.vmap(_locate, in_axes=(0, None))(sub, opts)
+        located = jax.tree_util.tree_map(
+            lambda old, new: old.at[take].set(new, mode="drop"), located, found
         )
-        return j + 1, t_event, y_event
+        return j + 1, located
 
-    _, t_event, y_event = jax.lax.while_loop(
-        lambda state: state[0] * batch < count, locate_batch, (0, a.t1, a.y1)
+    # (time, state, converged, bracket's upper end) of each lane's event.
+    located = (a.t1, a.y1, jnp.ones_like(event), a.t1)
+    _, located = jax.lax.while_loop(
+        lambda state: state[0] * batch < count, locate_batch, (0, located)
     )
-    new = jax.vmap(_finish, in_axes=(0, 0, 0, 0) + in_axes + (None, None))(
-        c, a, t_event, y_event, block, base, motion, duration, opts
+    new = jax.vmap(_finish, in_axes=(0, 0, 0) + in_axes + (None, None))(
+        c, a, located, block, base, motion, duration, opts
     )
     return new, a
