@@ -40,3 +40,19 @@ def test_unrolled_step_equals_diffrax_step(solver):
         b = solver.interpolation_cls(t0=t0, t1=t1, **got[2]).evaluate(t)
         for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)):
             np.testing.assert_allclose(np.asarray(y), np.asarray(x), rtol=1e-13)
+
+
+def test_computed_once_is_exact_and_transparent_to_derivatives():
+    """The fusion boundary divides by 1.0: bit-identical values (signed zeros,
+    infinities, NaN, integers untouched) under jit and vmap, identity tangents."""
+    from jaxrock._misc import computed_once
+
+    x = jnp.array([0.0, -0.0, 1e-300, -3.7, 1e300, jnp.inf, -jnp.inf, jnp.nan, 0.1])
+    n = jnp.arange(9)
+    got_x, got_n = jax.jit(jax.vmap(computed_once))((x, n))
+    np.testing.assert_array_equal(np.asarray(got_x), np.asarray(x))
+    assert np.array_equal(np.signbit(np.asarray(got_x)), np.signbit(np.asarray(x)))
+    assert got_n.dtype == n.dtype and np.array_equal(np.asarray(got_n), np.arange(9))
+    finite = x[jnp.isfinite(x)]
+    _, tangent = jax.jvp(computed_once, (finite,), (jnp.full_like(finite, 2.5),))
+    np.testing.assert_array_equal(np.asarray(tangent), 2.5)
