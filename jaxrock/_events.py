@@ -134,6 +134,12 @@ def newton_in_bracket(t, value, slope, lower, upper, inclusive: bool):
     return new, lower, upper
 
 
+# Tolerances of an event's time: the root finder stops, and the flat loop of
+# maps counts an event as located, once Newton's step is below
+# EVENT_ATOL + EVENT_RTOL |t| (s).
+EVENT_RTOL, EVENT_ATOL = 1e-14, 1e-12
+
+
 class _BracketState(eqx.Module):
     lower: Float[Array, ""]
     upper: Float[Array, ""]

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._dynamics import Args, Phase, vector_field
-from ._events import condition_quiet, newton_in_bracket
+from ._events import EVENT_ATOL, EVENT_RTOL, condition_quiet, newton_in_bracket
 from ._ground import AbstractGroundMotion
 from ._isolators import FixedBase
 from ._misc import computed_once
@@ -33,9 +33,6 @@ _NEWTON = 8
 # ... or fewer: a step below a few ulps of t has converged (quadratically: the
 # next would not move it).
 _CONVERGED = 4 * float(np.finfo(np.float64).eps)
-# An event counts as located when the last Newton step is below these (those of
-# `simulate`'s root finder); else the lane retries a shorter step (`_finish`).
-_LOCATED_RTOL, _LOCATED_ATOL = 1e-14, 1e-12
 
 
 def _clip(t0, t1, times):
@@ -193,7 +190,8 @@ def _locate(a: _Attempt, opts, unfired=()):
 
     state = (0, t, lower, upper, jnp.asarray(jnp.inf, dtype=t.dtype))
     _, t, _, upper, step = jax.lax.while_loop(going, newton_step, state)
-    converged = step <= _LOCATED_RTOL * jnp.abs(t) + _LOCATED_ATOL
+    # Located as `simulate` locates events; else the lane retries (`_finish`).
+    converged = step <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
     return t, evaluate(t), converged, upper
 
 

@@ -101,12 +101,15 @@ def _map_chunk(
         c = _select(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
+    def results(c, per_lane):
+        """What a finished lane writes: its response and its carry."""
+        return jax.vmap(_response, in_axes=(0, 0, None))(c, per_lane[0], opts), c
+
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
     per_lane0 = lanes(cell0)
     c0 = start(cell0, per_lane0)
     out = jax.tree_util.tree_map(
-        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype),
-        (jax.vmap(_response, in_axes=(0, 0, None))(c0, per_lane0[0], opts), c0),
+        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), results(c0, per_lane0)
     )
 
     def steps(c, cell, per_lane, executed, useful):
@@ -143,7 +146,7 @@ def _map_chunk(
         out = jax.tree_util.tree_map(
             lambda o, r: o.at[index].set(r, mode="drop"),
             out,
-            (jax.vmap(_response, in_axes=(0, 0, None))(c, per_lane[0], opts), c),
+            results(c, per_lane),
         )
         cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)

@@ -27,6 +27,8 @@ from ._dynamics import (
     vector_field,
 )
 from ._events import (
+    EVENT_ATOL,
+    EVENT_RTOL,
     BracketedNewton,
     condition_a,
     condition_b,
@@ -275,7 +277,7 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     if opts.step is None:
         # The first step is the previous segment's mean step (no step-size
         # selection, which costs two evaluations a segment).
-        root_finder, dt0 = BracketedNewton(rtol=1e-14, atol=1e-12), c.dt
+        root_finder, dt0 = BracketedNewton(rtol=EVENT_RTOL, atol=EVENT_ATOL), c.dt
     else:
         controller, root_finder, dt0 = diffrax.ConstantStepSize(), None, opts.step
     event = diffrax.Event(conditions, root_finder=root_finder, direction=False)

@@ -9,6 +9,7 @@ import pytest
 import jaxrock as jr
 from jaxrock._dynamics import Args, Phase, vector_field
 from jaxrock._flat import _erk_step
+from jaxrock._misc import computed_once
 
 
 @pytest.mark.parametrize("solver", [diffrax.Tsit5(), diffrax.Dopri5()])
@@ -45,8 +46,6 @@ def test_unrolled_step_equals_diffrax_step(solver):
 def test_computed_once_is_exact_and_transparent_to_derivatives():
     """The fusion boundary divides by 1.0: bit-identical values (signed zeros,
     infinities, NaN, integers untouched) under jit and vmap, identity tangents."""
-    from jaxrock._misc import computed_once
-
     x = jnp.array([0.0, -0.0, 1e-300, -3.7, 1e300, jnp.inf, -jnp.inf, jnp.nan, 0.1])
     n = jnp.arange(9)
     got_x, got_n = jax.jit(jax.vmap(computed_once))((x, n))
