@@ -14,7 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._block import Block
+from ._dynamics import Phase
 from ._flat import flat_step
+from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion, MPPulse, Record
 from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum, LinearIsolator
 from ._misc import as_float, positive
@@ -101,16 +103,21 @@ def _map_chunk(
         c = _select(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
-    def results(c, per_lane):
-        """What a finished lane writes: its response and its carry."""
-        return jax.vmap(_response, in_axes=(0, 0, None))(c, per_lane[0], opts), c
+    fixed = isinstance(base, FixedBase)
+
+    def closed_form(c, block, lane_motion):
+        """The lanes a fixed base finishes in closed form (`_free.py`)."""
+        if not fixed:
+            return jnp.zeros_like(c.done)
+        ready = jax.vmap(
+            free_rocking_ready, in_axes=(0, 0, 0 if axes[2] == 0 else None)
+        )
+        return ready(c, block, lane_motion.end_time)
 
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
     per_lane0 = lanes(cell0)
     c0 = start(cell0, per_lane0)
-    out = jax.tree_util.tree_map(
-        lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), results(c0, per_lane0)
-    )
+    out = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0)
 
     def steps(c, cell, per_lane, executed, useful):
         """Step every lane until one or more finish: the lanes whose analysis is
@@ -124,6 +131,7 @@ def _map_chunk(
             new, a = flat_step(c, block, lane_base, lane_motion, duration, opts, axes)
             taken = new.steps - c.steps
             ended = new.done | (new.segments >= opts.max_segments)
+            ended = ended | closed_form(new, block, lane_motion)
             leaves = new.rocked | (a.t1 >= lane_motion.end_time)  # the shared phase
             finished = (cell < n) & (ended | (pilot & leaves))
             new = _select(pilot & finished, c, new)
@@ -144,9 +152,7 @@ def _map_chunk(
         c, finished, executed, useful = steps(c, cell, per_lane, executed, useful)
         index = jnp.where(finished, cell, n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
-            lambda o, r: o.at[index].set(r, mode="drop"),
-            out,
-            results(c, per_lane),
+            lambda o, r: o.at[index].set(r, mode="drop"), out, c
         )
         cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)
@@ -158,7 +164,16 @@ def _map_chunk(
     zero = jnp.asarray(0)
     state = (c0, cell0, jnp.asarray(width), out, zero, zero, per_lane0)
     state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), refill, state)
-    (responses, carries), executed, useful = state[3:6]
+    carries, executed, useful = state[3:6]
+    blocks = Block(slenderness, size)
+    final = carries
+    if fixed:
+        # The lanes that `closed_form` ended: the others are done or out of
+        # segments (or pilots, whose responses are not used).
+        ready = ~carries.done & (carries.segments < opts.max_segments) & ~pilot
+        ready = ready & (carries.phase != Phase.TRANSLATION)
+        final = free_rocking(carries, blocks, base, duration, opts, ready)
+    responses = jax.vmap(_response, in_axes=(0, 0, None))(final, blocks, opts)
     return responses, carries, executed, useful
 
 

@@ -200,3 +200,53 @@ def test_history_ground_acceleration_is_the_pulse(fixed_rocking):
     assert h.ground_acceleration.shape == h.t.shape
     np.testing.assert_allclose(h.ground_acceleration, want, rtol=0, atol=1e-12)
     assert np.abs(want).max() > 1.0  # the pulse is in the window
+
+
+def test_carlson_rf_matches_scipy():
+    from scipy.special import elliprf
+
+    from jaxrock._free import carlson_rf
+
+    rng = np.random.default_rng(7)
+    x, y, z = 10.0 ** rng.uniform(-16, 2, (3, 200))
+    x[:20] = 0.0  # one argument may vanish
+    ours = np.asarray(carlson_rf(x, y, z))
+    np.testing.assert_allclose(ours, elliprf(x, y, z), rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "lam, size, apex, to",
+    [
+        (3.0, 1.0, 0.5, 0.0),  # apex -> impact
+        (7.0, 3.0, 0.999, 0.2),  # near the separatrix
+        (1.0, 0.2, 1e-4, 0.0),  # a tiny rocking of a squat block
+        (5.0, 1.0, 1 - 1e-5, 0.5),  # at the separatrix (a log singularity)
+    ],
+)
+def test_free_rocking_time_from_apex_matches_an_ode(lam, size, apex, to):
+    """The closed form of `_free.py` against SciPy's DOP853 at rtol 1e-13 on
+    theta'' = -p^2 sin(alpha - theta), from rest at the apex."""
+    from scipy.integrate import solve_ivp
+
+    from jaxrock._free import time_from_apex
+
+    block = jr.Block(lam, size)
+    p, alpha = float(block.p), float(block.alpha)
+    theta_a, theta = apex * alpha, to * apex * alpha
+    k, x = math.sin((alpha - theta_a) / 2), math.sin((alpha - theta) / 2)
+
+    def reached(t, y):
+        return y[0] - theta
+
+    reached.terminal = True
+    sol = solve_ivp(
+        lambda t, y: [y[1], -(p**2) * math.sin(alpha - y[0])],
+        (0.0, 1e3),
+        [theta_a, 0.0],
+        events=reached,
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-16,
+    )
+    expected = sol.t_events[0][0]
+    assert float(time_from_apex(p, x, k, x - k)) == pytest.approx(expected, rel=1e-10)

@@ -307,3 +307,41 @@ def test_flat_loop_retries_an_event_newton_did_not_locate():
         assert bm.impacts[0, j] == int(one.impacts)
         assert bm.max_rotation[0, j] == pytest.approx(float(one.max_rotation), rel=1e-7)
     assert bm.impacts[0, 0] > 60
+
+
+@pytest.mark.parametrize(
+    "duration, max_segments",
+    [(None, 2000), (float(PULSE.end_time) + 0.25, 2000), (None, 15)],
+    ids=["default", "window-ends-mid-rise", "segment-limit"],
+)
+def test_fixed_base_free_rocking_tail_equals_simulate(duration, max_segments):
+    """On a fixed base a map finishes the rocking after the pulse in closed form
+    (`_free.py`); `simulate` integrates it. Every field they share agrees: with
+    a window that ends while blocks rise to their highest apex (theta at the
+    window's end, by bisection), and with a segment limit hit in the tail. The
+    grid holds blocks past their corner when the pulse ends ((2.7, 0.6 m):
+    integrated on, they overturn) and long Zeno tails of small impacts."""
+    lam, size = [2.7, 2.9, 4.0, 6.0], [0.6, 1.5, 3.5]
+    bm = jr.behavior_map(
+        lam, size, jr.FixedBase(), PULSE, duration=duration, max_segments=max_segments
+    )
+    for i, j in np.ndindex(bm.outcome.shape):
+        one = jr.simulate(
+            jr.Block(lam[i], size[j]),
+            jr.FixedBase(),
+            PULSE,
+            duration=duration,
+            max_segments=max_segments,
+        )
+        for k in ("outcome", "impacts", "segments", "status"):
+            assert getattr(bm, k)[i, j] == int(getattr(one, k)), (lam[i], size[j], k)
+        assert bm.max_rotation[i, j] == pytest.approx(float(one.max_rotation), rel=1e-6)
+    if max_segments < 2000:
+        assert np.sum(bm.status == jr.Status.MAX_SEGMENTS) >= 3
+    elif duration is None:
+        assert bm.outcome[0, 0] == jr.Outcome.OVERTURNED
+        assert bm.impacts.max() > 30
+    else:  # blocks still rising at the window's end, and at their highest
+        full = jr.behavior_map(lam, size, jr.FixedBase(), PULSE)
+        rocking = bm.outcome == jr.Outcome.ROCKING
+        assert np.sum(rocking & (bm.max_rotation < full.max_rotation * (1 - 1e-6))) >= 2

@@ -1,0 +1,165 @@
+"""Free rocking on a fixed base, in closed form (the tail of a behavior map).
+
+Once the ground is still, a block rocking on a fixed base is Housner's
+inverted pendulum: theta'' = -p^2 sin(s alpha - theta) between impacts, and
+each impact multiplies theta' by e (`restitution`). Energy is conserved
+between impacts, so the apex, the time to the next impact and whether the
+block overturns follow from the state alone. With x = sin((alpha - |theta|) / 2)
+and k = sin((alpha - theta_apex) / 2) (the energy: k^2 = x^2 - theta'^2 / (4 p^2)),
+
+    time from the apex to |theta| = (1 / p) int_k^x ds / sqrt((1 - s^2)(s^2 - k^2))
+                                  = (2 / p) sqrt(x - k) R_F(A, B, C),
+    A = (1 - k^2)(x + k), B = 2 k (1 - x)(1 + k), C = 2 k (1 - k)(1 + x)
+
+(DLMF 19.29.4 with the factors 1 -+ s and s -+ k), where R_F is Carlson's
+symmetric elliptic integral; x - k = (x^2 - k^2) / (x + k) has no cancellation.
+Maps run the numerical loop to the end of the excitation and finish each
+rocking cell here: a third of a fixed-base map's steps and most of its events.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._dynamics import Phase, restitution
+from ._simulate import EventKind, _Carry
+from ._trig import sincos
+
+
+def carlson_rf(x, y, z, iterations: int = 16):
+    """Carlson's R_F(x, y, z) = (1/2) int_0^inf dt / sqrt((t+x)(t+y)(t+z)), for
+    x, y, z >= 0 with at most one zero; float64 to a few ulps.
+
+    The duplication theorem brings the arguments together (each step divides
+    their spread by 4, once they are of one magnitude: 16 steps cover a ratio of
+    1e16 between them), then a fifth-order series (Carlson 1995).
+    """
+    for _ in range(iterations):
+        sx, sy, sz = jnp.sqrt(x), jnp.sqrt(y), jnp.sqrt(z)
+        lam = sx * (sy + sz) + sy * sz
+        x, y, z = 0.25 * (x + lam), 0.25 * (y + lam), 0.25 * (z + lam)
+    a = (x + y + z) / 3.0
+    dx, dy = 1.0 - x / a, 1.0 - y / a
+    dz = -(dx + dy)
+    e2 = dx * dy - dz * dz
+    e3 = dx * dy * dz
+    series = 1.0 - e2 / 10.0 + e3 / 14.0 + e2 * e2 / 24.0 - 3.0 * e2 * e3 / 44.0
+    return series / jnp.sqrt(a)
+
+
+def time_from_apex(p, x, k, gap, iterations: int = 16):
+    """Time (s) from the apex (s = k) to s = x in free rocking; `gap` = x - k."""
+    one_k = 1.0 - k
+    a = (1.0 + k) * one_k * (x + k)
+    b = 2.0 * k * (1.0 - x) * (1.0 + k)
+    c = 2.0 * k * one_k * (1.0 + x)
+    return 2.0 / p * jnp.sqrt(gap) * carlson_rf(a, b, c, iterations)
+
+
+def free_rocking_ready(c: _Carry, block, end_time):
+    """The lane can be finished in closed form: fixed base, ground still,
+    rocking on the near side of the corner (x > 0: |theta| < alpha) and below
+    the separatrix (k^2 > 0: it cannot overturn)."""
+    q, w = c.sign * c.y[0], c.sign * c.y[1]
+    x, _ = sincos(0.5 * (block.alpha - q))
+    k2 = x * x - (w / (2.0 * block.p)) ** 2
+    rocking = c.phase != Phase.TRANSLATION
+    return ~c.done & rocking & (c.t >= end_time) & (x > 0) & (k2 > 0)
+
+
+def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
+    """Finish the `ready` lanes (see `free_rocking_ready`) as `simulate`'s
+    segment loop would: their apexes and impacts (with the rest rule) up to
+    `duration`, a segment each, and max |theta|. Elementwise over any batch
+    shape, one impact per iteration of a loop that runs as long as the busiest
+    lane needs; other lanes are returned unchanged."""
+    p, alpha = block.p, block.alpha
+    e, _ = restitution(block, base)
+    sin_alpha = block.b / block.size
+    x0 = jnp.sin(0.5 * alpha)  # x at theta = 0
+    limit = opts.max_segments
+
+    def apex_to_impact(k, iterations=16):
+        gap2 = x0 * x0 - k * k  # (theta' / 2p)^2 at the impact
+        return time_from_apex(p, x0, k, gap2 / (x0 + k), iterations)
+
+    # Where the lane is: its apex (k, from the energy) and |t - t_apex|.
+    q, w = c.sign * c.y[0], c.sign * c.y[1]
+    x, _ = sincos(0.5 * (alpha - q))
+    gap2 = (w / (2.0 * p)) ** 2  # x^2 - k^2
+    k = jnp.sqrt(jnp.where(ready, jnp.maximum(x * x - gap2, 0.0), x0 * x0))
+    apex_offset = time_from_apex(p, x, k, gap2 / (x + k))
+    rising = c.phase == Phase.RISING
+    t_apex = c.t + apex_offset
+    t_impact = jnp.where(rising, t_apex, c.t - apex_offset) + apex_to_impact(k)
+    # The apex ahead of a rising lane is the highest of the rest of the analysis
+    # (energy only falls from here), unless `duration` comes first.
+    live = ready & (c.segments < limit)
+    apex = live & rising
+    cut = apex & (t_apex > duration)
+    reached = apex & ~cut
+    max_theta = jnp.where(
+        reached, jnp.maximum(c.max_theta, alpha - 2.0 * jnp.arcsin(k)), c.max_theta
+    )
+
+    def bisect(_, bounds):  # theta(duration) of a cut lane: x in [k, x]
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        late = time_from_apex(p, mid, k, mid - k) > t_apex - duration
+        return jnp.where(late, lo, mid), jnp.where(late, mid, hi)
+
+    x_end, _ = jax.lax.cond(
+        jnp.any(cut),
+        lambda: jax.lax.fori_loop(0, 64, bisect, (k, x)),
+        lambda: (k, x),
+    )
+    max_theta = jnp.where(
+        cut, jnp.maximum(max_theta, alpha - 2.0 * jnp.arcsin(x_end)), max_theta
+    )
+
+    def going(s):
+        return ~s["done"] & (s["segments"] < limit)
+
+    def body(s):
+        """The impact at s["t"] (or the window's end first), then the apex."""
+        end = s["t"] > duration
+        gap2 = x0 * x0 - s["k"] ** 2
+        # The rest rule of `_transition`: (e theta'-)^2 / (2 p^2 sin alpha) small.
+        rise = 2.0 * e * e * gap2 / sin_alpha
+        rest = ~end & ((e <= 0) | (rise < opts.rest_tolerance * alpha))
+        # After an impact k >= x0 sqrt(1 - e^2): R_F's arguments are of one
+        # magnitude, and 6 duplications give full precision.
+        k = jnp.sqrt(x0 * x0 - e * e * gap2)
+        half = apex_to_impact(k, 6)
+        segments = s["segments"] + 1  # the end, or the impact
+        bounce = ~end & ~rest & (segments < limit)
+        late = s["t"] + half > duration  # the window ends before the apex
+        new = dict(
+            t=s["t"] + 2.0 * half,
+            k=k,
+            impacts=s["impacts"] + ~end,
+            segments=segments + bounce,  # the apex, or the end before it
+            done=end | rest | (bounce & late),
+        )
+        return jax.tree_util.tree_map(lambda n, o: jnp.where(going(s), n, o), new, s)
+
+    s = dict(
+        t=t_impact,
+        k=k,
+        impacts=c.impacts,
+        segments=c.segments + apex,  # the apex, or the end before it
+        done=~live | cut,
+    )
+    s = jax.lax.while_loop(lambda s: jnp.any(going(s)), body, s)
+    final = eqx.tree_at(
+        lambda c: (c.max_theta, c.impacts, c.segments, c.done, c.kind),
+        c,
+        (
+            max_theta,
+            s["impacts"],
+            s["segments"],
+            s["done"] & ready,
+            jnp.full_like(c.kind, EventKind.END),
+        ),
+    )
+    return jax.tree_util.tree_map(lambda n, o: jnp.where(ready, n, o), final, c)
