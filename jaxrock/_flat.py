@@ -13,6 +13,8 @@ For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`),
 and only the lanes with an event run the root find, in batches (`flat_step`).
 """
 
+import functools
+
 import diffrax
 import equinox as eqx
 import jax
@@ -153,6 +155,74 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     )
 
 
+def _tsit5_dense_weights():
+    """Tsit5's dense output weights (Diffrax's `_Tsit5Interpolation`) in
+    monomials: b_i(s) = sum_m W[i, m - 1] s^m, m = 1..4, s = (t - t0) / h."""
+    P = np.polynomial.polynomial
+    s, s2 = [0.0, 1.0], [0.0, 0.0, 1.0]
+    factors = [
+        (
+            -1.0530884977290216,
+            s,
+            [-1.3299890189751412, 1],
+            [0.7139816917074209, -1.4364028541716351, 1],
+        ),
+        (0.1017, s2, [1.2949852507374631, -2.1966568338249754, 1]),
+        (2.490627285651252793, s2, [1.57803468208092486, -2.38535645472061657, 1]),
+        (
+            -16.54810288924490272,
+            s2,
+            [-1.21712927295533244, 1],
+            [-0.61620406037800089, 1],
+        ),
+        (
+            47.37952196281928122,
+            s2,
+            [-1.203071208372362603, 1],
+            [-0.658047292653547382, 1],
+        ),
+        (-34.87065786149660974, s2, [-1.2, 1], [-0.666666666666666667, 1]),
+        (2.5, s2, [-1.0, 1], [-0.6, 1]),
+    ]
+    weights = np.zeros((7, 4))
+    for i, (scale, *polys) in enumerate(factors):
+        b = scale * functools.reduce(P.polymul, polys)
+        weights[i, : b.size - 1] = b[1:]
+    return weights
+
+
+_TSIT5_WEIGHTS = _tsit5_dense_weights()
+
+
+def _dense_in_s(solver, a: "_Attempt"):
+    """The step's dense output as a function of s = (t - t0) / (t1 - t0).
+
+    Tsit5's is a quartic in s: its coefficients are computed once, and each
+    evaluation is Horner's rule (elementwise: cheap inside Newton's iterations).
+    """
+    if not isinstance(solver, diffrax.Tsit5):
+        evaluate = solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense).evaluate
+        return lambda s: evaluate(a.t0 + s * (a.t1 - a.t0))
+
+    def coefficients(k):
+        return jnp.stack(
+            [
+                sum(w * k[i] for i, w in enumerate(column) if w != 0)
+                for column in _TSIT5_WEIGHTS.T
+            ]
+        )
+
+    y0 = a.dense["y0"]
+    c = computed_once(jax.tree_util.tree_map(coefficients, a.dense["k"]))
+
+    def evaluate(s):
+        return jax.tree_util.tree_map(
+            lambda y, c: y + s * (c[0] + s * (c[1] + s * (c[2] + s * c[3]))), y0, c
+        )
+
+    return evaluate
+
+
 def _locate(a: _Attempt, opts, unfired=()):
     """The event's time and state: bracketed Newton on [t0, t1] (the condition is
     > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
@@ -162,37 +232,44 @@ def _locate(a: _Attempt, opts, unfired=()):
     close to t0 in a long step, where the secant is far off) it may not: the
     lane then retries a shorter step (see `_finish`). Conditions whose index is
     in `unfired` fired in no lane of the batch and are not evaluated.
+
+    Newton runs in s = (t - t0) / h on the dense output in s, its iterations
+    unrolled (a lane stops moving once converged): XLA fuses an iteration into
+    a few kernels, where a loop ran about 18 (its state copied, its condition
+    reduced, the interpolant's stacked stages a dot).
     """
     conditions = _setup_conditions(a.args.base)
-    evaluate = opts.solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense).evaluate
+    evaluate = _dense_in_s(opts.solver, a)
+    h = a.t1 - a.t0
 
-    def g(t):
-        y = evaluate(t)
+    def g(s):
+        t, y = a.t0 + s * h, evaluate(s)
         return sum(
-            jnp.where(h, cond(t, y, a.args), 0.0)
-            for i, (h, cond) in enumerate(zip(a.fired, conditions))
+            jnp.where(hit, cond(t, y, a.args), 0.0)
+            for i, (hit, cond) in enumerate(zip(a.fired, conditions))
             if i not in unfired
         )
 
-    lower, upper = a.t0, a.t1
-    t = a.t0 + (a.t1 - a.t0) * a.g0 / jnp.where(a.g0 == a.g1, 1.0, a.g0 - a.g1)
-    t = jnp.clip(t, a.t0, a.t1)
-
-    def newton_step(state):
-        i, t, lower, upper, _ = state
-        value, slope = jax.jvp(g, (t,), (jnp.ones_like(t),))
-        new, lower, upper = newton_in_bracket(t, value, slope, lower, upper, True)
-        return i + 1, new, lower, upper, jnp.abs(new - t)
-
-    def going(state):
-        i, t, _, _, step = state
-        return (i < _NEWTON) & (step > _CONVERGED * jnp.abs(t))
-
-    state = (0, t, lower, upper, jnp.asarray(jnp.inf, dtype=t.dtype))
-    _, t, _, upper, step = jax.lax.while_loop(going, newton_step, state)
+    lower, upper = jnp.zeros_like(h), jnp.ones_like(h)
+    s = jnp.clip(a.g0 / jnp.where(a.g0 == a.g1, 1.0, a.g0 - a.g1), 0.0, 1.0)
+    step = jnp.full_like(h, jnp.inf)  # of s
+    for _ in range(_NEWTON):
+        going = step * h > _CONVERGED * jnp.abs(a.t0 + s * h)
+        value, slope = jax.jvp(g, (s,), (jnp.ones_like(s),))
+        new, new_lower, new_upper = newton_in_bracket(
+            s, value, slope, lower, upper, True
+        )
+        lower = jnp.where(going, new_lower, lower)
+        upper = jnp.where(going, new_upper, upper)
+        step = jnp.where(going, jnp.abs(new - s), step)
+        s = jnp.where(going, new, s)
+        # One kernel writes an iteration's state, and the next reads it (else
+        # XLA recomputes earlier iterations inside later ones).
+        s, lower, upper, step = computed_once(jnp.stack([s, lower, upper, step]))
+    t = a.t0 + s * h
     # Located as `simulate` locates events; else the lane retries (`_finish`).
-    converged = step <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
-    return t, evaluate(t), converged, upper
+    converged = step * h <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
+    return t, evaluate(s), converged, a.t0 + upper * h
 
 
 def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
