@@ -4,7 +4,8 @@ Each reduction jaxrock makes is timed against the same scene without it
 (San Fernando PCD/SN, rtol 1e-8, best of --repeats, after compilation):
 
 - fixed base: no base state, against a base state (u, u', z) carried with zero
-  rates (the block's equations unchanged);
+  rates (the block's equations unchanged); and the free rocking after the
+  pulse finished in closed form (`_free.py`), against integrated;
 - linear isolator: no hysteretic state, against z carried with zero rate, and
   against z integrated by Bouc-Wen (paper's parameters) while its force is
   zero: a one-model-for-all isolator F = k u + c u' + Q z with Q = 0;
@@ -41,6 +42,13 @@ class CarriedFixedBase(jr.FixedBase):
 
     def rates(self, state, u_ddot):
         return jnp.zeros_like(state)
+
+
+class IntegratedTailFixedBase(jr.FixedBase):
+    """A fixed base whose free rocking after the pulse is integrated step by step
+    (as `simulate` does) instead of finished in closed form."""
+
+    free_rocking_closed_form: ClassVar[bool] = False
 
 
 class CarriedLinear(jr.LinearIsolator):
@@ -92,6 +100,13 @@ def main():
             jr.FixedBase(),
             "(u, u', z) carried",
             CarriedFixedBase(),
+        ),
+        (
+            "fixed base",
+            "free rocking after the pulse in closed form",
+            jr.FixedBase(),
+            "integrated",
+            IntegratedTailFixedBase(),
         ),
         (
             "linear isolator",

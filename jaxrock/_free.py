@@ -34,10 +34,14 @@ def carlson_rf(x, y, z, iterations: int = 16):
     their spread by 4, once they are of one magnitude: 16 steps cover a ratio of
     1e16 between them), then a fifth-order series (Carlson 1995).
     """
-    for _ in range(iterations):
+
+    def duplicate(_, xyz):
+        x, y, z = xyz
         sx, sy, sz = jnp.sqrt(x), jnp.sqrt(y), jnp.sqrt(z)
         lam = sx * (sy + sz) + sy * sz
-        x, y, z = 0.25 * (x + lam), 0.25 * (y + lam), 0.25 * (z + lam)
+        return 0.25 * (x + lam), 0.25 * (y + lam), 0.25 * (z + lam)
+
+    x, y, z = jax.lax.fori_loop(0, iterations, duplicate, (x, y, z))
     a = (x + y + z) / 3.0
     dx, dy = 1.0 - x / a, 1.0 - y / a
     dz = -(dx + dy)

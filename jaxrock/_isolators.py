@@ -21,9 +21,12 @@ class AbstractIsolator(eqx.Module):
     """What lies between the ground and the block.
 
     `n_states` is the size of the base state (0: no base degree of freedom).
+    `free_rocking_closed_form`: once the ground is still, a rocking block's
+    motion has a closed form (maps then finish it without steps, `_free.py`).
     """
 
     n_states: ClassVar[int]
+    free_rocking_closed_form: ClassVar[bool] = False
 
     @abc.abstractmethod
     def initial_state(self) -> Float[Array, " n"] | None:
@@ -56,6 +59,7 @@ class FixedBase(AbstractIsolator):
     """No isolation: the block stands on the ground (Housner's problem, 1 DOF)."""
 
     n_states: ClassVar[int] = 0
+    free_rocking_closed_form: ClassVar[bool] = True  # Housner's inverted pendulum
 
     def initial_state(self):
         return None

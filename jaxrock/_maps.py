@@ -103,11 +103,12 @@ def _map_chunk(
         c = _select(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
-    fixed = isinstance(base, FixedBase)
+    closed = base.free_rocking_closed_form
 
     def closed_form(c, block, lane_motion):
-        """The lanes a fixed base finishes in closed form (`_free.py`)."""
-        if not fixed:
+        """The lanes finished in closed form (`_free.py`): free rocking on a
+        fixed base once the ground is still."""
+        if not closed:
             return jnp.zeros_like(c.done)
         ready = jax.vmap(
             free_rocking_ready, in_axes=(0, 0, 0 if axes[2] == 0 else None)
@@ -167,7 +168,7 @@ def _map_chunk(
     carries, executed, useful = state[3:6]
     blocks = Block(slenderness, size)
     final = carries
-    if fixed:
+    if closed:
         # The lanes that `closed_form` ended: the others are done or out of
         # segments (or pilots, whose responses are not used).
         ready = ~carries.done & (carries.segments < opts.max_segments) & ~pilot

@@ -157,15 +157,6 @@ def test_naive_fixed_step_baseline_is_wrong_and_default_is_not():
     assert int(naive.impacts) != int(tight.impacts)
 
 
-def test_map_counts_unconverged_cells():
-    bm = jr.behavior_map([3.0, 5.0], [0.5, 1.0], jr.FixedBase(), PULSE, max_segments=3)
-    assert bm.counts()["not_converged"] > 0
-    assert "NOT CONVERGED" in bm.summary()
-    assert np.all(
-        (bm.status == jr.Status.SUCCESS) | (bm.status == jr.Status.MAX_SEGMENTS)
-    )
-
-
 def test_near_double_root_of_theta_dot_is_caught():
     """Northridge JFA, linear isolator, lambda = 6, r = 1.1 m: an apex where theta'
     only touches zero once sent the block past pi/2 unwatched (max rotation 27.7
