@@ -76,6 +76,11 @@ def _map_chunk(
     uplifts at once, and redoes that attempt itself: the same steps as its
     own analysis from t = 0.
 
+    On a base whose free rocking has a closed form (a fixed base), a lane that
+    rocks once the ground is still (below the separatrix, on the near side of
+    its corner) finishes at once; after the loop `free_rocking` completes all
+    such cells of the chunk together.
+
     Returns the responses and carries (one per cell), the lane-steps executed
     (iterations times lanes) and those that advanced an analysis.
     """
@@ -352,7 +357,10 @@ def behavior_map(
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
-    Every cell is the exact analysis of `simulate`. The parameters of `base` and
+    Every cell is the exact analysis of `simulate`; on a fixed base the free
+    rocking after the excitation is finished in closed form (`_free.py`: the
+    same apexes, impacts, rest rule and segments, without steps; `steps`
+    counts the integrated part). The parameters of `base` and
     of an `MPPulse` may carry batch axes (an ensemble of isolators or of pulses,
     e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
     then has shape base batch + pulse batch + (n_slenderness, n_size).
