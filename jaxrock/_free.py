@@ -155,15 +155,8 @@ def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
         done=~live | cut,
     )
     s = jax.lax.while_loop(lambda s: jnp.any(going(s)), body, s)
-    final = eqx.tree_at(
-        lambda c: (c.max_theta, c.impacts, c.segments, c.done, c.kind),
-        c,
-        (
-            max_theta,
-            s["impacts"],
-            s["segments"],
-            s["done"] & ready,
-            jnp.full_like(c.kind, EventKind.END),
-        ),
+    fields = lambda c: (c.max_theta, c.impacts, c.segments, c.done, c.kind)  # noqa: E731
+    new = (max_theta, s["impacts"], s["segments"], s["done"], EventKind.END)
+    return eqx.tree_at(
+        fields, c, tuple(jnp.where(ready, n, o) for n, o in zip(new, fields(c)))
     )
-    return jax.tree_util.tree_map(lambda n, o: jnp.where(ready, n, o), final, c)
