@@ -8,16 +8,13 @@ import pytest
 
 import jaxrock as jr
 from jaxrock._dynamics import Args, Phase, vector_field
-from jaxrock._flat import _erk_step
+from jaxrock._flat import _dense_in_s, _erk_step
 from jaxrock._misc import computed_once
 
 
-@pytest.mark.parametrize("solver", [diffrax.Tsit5(), diffrax.Dopri5()])
-def test_unrolled_step_equals_diffrax_step(solver):
-    """Same y1, error estimate and dense output (so the same interpolant), on a
-    rocking block on a friction pendulum mid-pulse (all five states moving)."""
-    base = jr.FrictionPendulum(0.11, 2.24, 0.5)
-    args = Args(
+def _rising(base):
+    """Arguments of a block (3.0, 1.0 m) rising about x = +b mid-pulse."""
+    return Args(
         jr.Block(3.0, 1.0),
         base,
         jr.near_fault_pulse("San Fernando PCD/SN"),
@@ -27,6 +24,14 @@ def test_unrolled_step_equals_diffrax_step(solver):
         jnp.asarray(False),
         jnp.asarray(0.0),
     )
+
+
+@pytest.mark.parametrize("solver", [diffrax.Tsit5(), diffrax.Dopri5()])
+def test_unrolled_step_equals_diffrax_step(solver):
+    """Same y1, error estimate and dense output (so the same interpolant), on a
+    rocking block on a friction pendulum mid-pulse (all five states moving)."""
+    base = jr.FrictionPendulum(0.11, 2.24, 0.5)
+    args = _rising(base)
     y0 = (jnp.asarray(0.01), jnp.asarray(0.2), jnp.array([0.01, 0.3, 0.5]))
     t0, t1 = jnp.asarray(0.7), jnp.asarray(0.7001)
     term = diffrax.ODETerm(vector_field)
@@ -61,19 +66,8 @@ def test_tsit5_dense_output_in_monomials_equals_diffrax():
     """The root find's Tsit5 interpolant (a quartic in s, Horner's rule) is
     Diffrax's, with its derivative, on a 10 ms step of a rocking block on a
     linear isolator mid-pulse."""
-    from jaxrock._flat import _dense_in_s
-
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    args = Args(
-        jr.Block(3.0, 1.0),
-        base,
-        jr.near_fault_pulse("San Fernando PCD/SN"),
-        jnp.asarray(Phase.RISING),
-        jnp.asarray(1.0),
-        jnp.asarray(0.0),
-        jnp.asarray(False),
-        jnp.asarray(0.0),
-    )
+    args = _rising(base)
     y0 = (jnp.asarray(0.01), jnp.asarray(0.2), jnp.array([0.01, 0.3]))
     t0, t1 = jnp.asarray(0.7), jnp.asarray(0.71)
     _, _, dense = _erk_step(diffrax.Tsit5.tableau, t0, t1, y0, args)
