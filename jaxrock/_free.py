@@ -14,7 +14,7 @@ and k = sin((alpha - theta_apex) / 2) (the energy: k^2 = x^2 - theta'^2 / (4 p^2
 (DLMF 19.29.4 with the factors 1 -+ s and s -+ k), where R_F is Carlson's
 symmetric elliptic integral; x - k = (x^2 - k^2) / (x + k) has no cancellation.
 Maps run the numerical loop to the end of the excitation and finish each
-rocking cell here: a third of a fixed-base map's steps and most of its events.
+rocking cell here: 28% of a fixed-base map's steps, and most of its events.
 """
 
 import equinox as eqx
