@@ -321,7 +321,7 @@ def test_fixed_base_free_rocking_tail_equals_simulate(duration, max_segments):
     window's end, by bisection), and with a segment limit hit in the tail. The
     grid holds blocks past their corner when the pulse ends ((2.7, 0.6 m):
     integrated on, they overturn) and long Zeno tails of small impacts."""
-    lam, size = [2.7, 2.9, 4.0, 6.0], [0.6, 1.5, 3.5]
+    lam, size = [2.7, 4.0, 6.0], [0.6, 1.5]
     bm = jr.behavior_map(
         lam, size, jr.FixedBase(), PULSE, duration=duration, max_segments=max_segments
     )
@@ -337,7 +337,7 @@ def test_fixed_base_free_rocking_tail_equals_simulate(duration, max_segments):
             assert getattr(bm, k)[i, j] == int(getattr(one, k)), (lam[i], size[j], k)
         assert bm.max_rotation[i, j] == pytest.approx(float(one.max_rotation), rel=1e-6)
     if max_segments < 2000:  # some cells stop at the limit, and say so
-        assert np.sum(bm.status == jr.Status.MAX_SEGMENTS) >= 3
+        assert np.sum(bm.status == jr.Status.MAX_SEGMENTS) >= 2
         assert bm.counts()["not_converged"] == np.sum(bm.status != jr.Status.SUCCESS)
         assert "NOT CONVERGED" in bm.summary()
     elif duration is None:
