@@ -372,8 +372,14 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
     started = uplift | again
 
     max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
+    # max |u| over segment ends (its peaks are located events), as `simulate`
+    # sees it: the flat loop's steps that only move the state on ("cut") do not
+    # raise it, else the "base" condition (|u| above it) would be <= 0 only
+    # near the top of a peak, and a step over that top would miss the peak.
     max_u = (
-        c.max_u if base_state is None else jnp.maximum(c.max_u, jnp.abs(base_state[0]))
+        c.max_u
+        if base_state is None
+        else jnp.where(cut, c.max_u, jnp.maximum(c.max_u, jnp.abs(base_state[0])))
     )
     # Nothing can happen any more (ground still, block in translation, base energy
     # too low): the analysis ends early.

@@ -55,6 +55,13 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             np.testing.assert_allclose(
                 linear_map.max_rotation[i, j], float(one.max_rotation), rtol=1e-6
             )
+            # A peak of |u| is an event in both (before session 7 the flat
+            # loop could step over one: 4 of these cells were up to 1.2e-3 low).
+            np.testing.assert_allclose(
+                linear_map.max_base_displacement[i, j],
+                float(one.max_base_displacement),
+                rtol=1e-6,
+            )
     # The grid holds every outcome, so the comparison means something.
     assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
 
