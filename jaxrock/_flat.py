@@ -14,6 +14,7 @@ and only the lanes with an event run the root find, in batches (`flat_step`).
 """
 
 import functools
+import math
 
 import diffrax
 import equinox as eqx
@@ -155,43 +156,22 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     )
 
 
-def _tsit5_dense_weights():
-    """Tsit5's dense output weights (Diffrax's `_Tsit5Interpolation`) in
-    monomials: b_i(s) = sum_m W[i, m - 1] s^m, m = 1..4, s = (t - t0) / h."""
-    P = np.polynomial.polynomial
-    s, s2 = [0.0, 1.0], [0.0, 0.0, 1.0]
-    factors = [
-        (
-            -1.0530884977290216,
-            s,
-            [-1.3299890189751412, 1],
-            [0.7139816917074209, -1.4364028541716351, 1],
-        ),
-        (0.1017, s2, [1.2949852507374631, -2.1966568338249754, 1]),
-        (2.490627285651252793, s2, [1.57803468208092486, -2.38535645472061657, 1]),
-        (
-            -16.54810288924490272,
-            s2,
-            [-1.21712927295533244, 1],
-            [-0.61620406037800089, 1],
-        ),
-        (
-            47.37952196281928122,
-            s2,
-            [-1.203071208372362603, 1],
-            [-0.658047292653547382, 1],
-        ),
-        (-34.87065786149660974, s2, [-1.2, 1], [-0.666666666666666667, 1]),
-        (2.5, s2, [-1.0, 1], [-0.6, 1]),
-    ]
-    weights = np.zeros((7, 4))
-    for i, (scale, *polys) in enumerate(factors):
-        b = scale * functools.reduce(P.polymul, polys)
-        weights[i, : b.size - 1] = b[1:]
-    return weights
-
-
-_TSIT5_WEIGHTS = _tsit5_dense_weights()
+@functools.cache
+def _tsit5_weights():
+    """Tsit5's dense output weights in monomials of s = (t - t0) / h:
+    b_i(s) = sum_m W[i, m - 1] s^m, m = 1..4 (b_i(0) = 0), read off Diffrax's
+    own interpolant as its Taylor coefficients at s = 0 (stages: unit vectors)."""
+    columns = []
+    with jax.ensure_compile_time_eval():  # constants, also when called in a trace
+        zero = jnp.zeros(7)
+        interpolant = diffrax.Tsit5.interpolation_cls(
+            t0=0.0, t1=1.0, y0=zero, y1=zero, k=jnp.eye(7)
+        )
+        derivative = interpolant.evaluate
+        for m in range(1, 5):
+            derivative = jax.jacfwd(derivative)
+            columns.append(np.asarray(derivative(jnp.asarray(0.0))) / math.factorial(m))
+    return np.stack(columns, axis=1)
 
 
 def _dense_in_s(solver, a: "_Attempt"):
@@ -208,7 +188,7 @@ def _dense_in_s(solver, a: "_Attempt"):
         return jnp.stack(
             [
                 sum(w * k[i] for i, w in enumerate(column) if w != 0)
-                for column in _TSIT5_WEIGHTS.T
+                for column in _tsit5_weights().T
             ]
         )
 

@@ -60,15 +60,19 @@ def time_from_apex(p, x, k, gap, iterations: int = 16):
     return 2.0 / p * jnp.sqrt(gap) * carlson_rf(a, b, c, iterations)
 
 
+def _energy(c: _Carry, block):
+    """x = sin((alpha - |theta|) / 2) and (theta' / 2p)^2 = x^2 - k^2."""
+    x, _ = sincos(0.5 * (block.alpha - c.sign * c.y[0]))
+    return x, (c.y[1] / (2.0 * block.p)) ** 2
+
+
 def free_rocking_ready(c: _Carry, block, end_time):
     """The lane can be finished in closed form: fixed base, ground still,
     rocking on the near side of the corner (x > 0: |theta| < alpha) and below
     the separatrix (k^2 > 0: it cannot overturn)."""
-    q, w = c.sign * c.y[0], c.sign * c.y[1]
-    x, _ = sincos(0.5 * (block.alpha - q))
-    k2 = x * x - (w / (2.0 * block.p)) ** 2
+    x, gap2 = _energy(c, block)
     rocking = c.phase != Phase.TRANSLATION
-    return ~c.done & rocking & (c.t >= end_time) & (x > 0) & (k2 > 0)
+    return ~c.done & rocking & (c.t >= end_time) & (x > 0) & (x * x > gap2)
 
 
 def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
@@ -88,9 +92,7 @@ def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
         return time_from_apex(p, x0, k, gap2 / (x0 + k), iterations)
 
     # Where the lane is: its apex (k, from the energy) and |t - t_apex|.
-    q, w = c.sign * c.y[0], c.sign * c.y[1]
-    x, _ = sincos(0.5 * (alpha - q))
-    gap2 = (w / (2.0 * p)) ** 2  # x^2 - k^2
+    x, gap2 = _energy(c, block)
     k = jnp.sqrt(jnp.where(ready, jnp.maximum(x * x - gap2, 0.0), x0 * x0))
     apex_offset = time_from_apex(p, x, k, gap2 / (x + k))
     rising = c.phase == Phase.RISING
@@ -155,7 +157,10 @@ def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
         done=~live | cut,
     )
     s = jax.lax.while_loop(lambda s: jnp.any(going(s)), body, s)
-    fields = lambda c: (c.max_theta, c.impacts, c.segments, c.done, c.kind)  # noqa: E731
+
+    def fields(c):
+        return c.max_theta, c.impacts, c.segments, c.done, c.kind
+
     new = (max_theta, s["impacts"], s["segments"], s["done"], EventKind.END)
     return eqx.tree_at(
         fields, c, tuple(jnp.where(ready, n, o) for n, o in zip(new, fields(c)))

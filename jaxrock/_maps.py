@@ -115,10 +115,7 @@ def _map_chunk(
         fixed base once the ground is still."""
         if not closed:
             return jnp.zeros_like(c.done)
-        ready = jax.vmap(
-            free_rocking_ready, in_axes=(0, 0, 0 if axes[2] == 0 else None)
-        )
-        return ready(c, block, lane_motion.end_time)
+        return free_rocking_ready(c, block, lane_motion.end_time)  # elementwise
 
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
     per_lane0 = lanes(cell0)
