@@ -17,7 +17,8 @@ energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
 "guard" catches a phase begun on the wrong side of a near double root of theta'
 (see `condition_guard`). Diffrax lets the first condition in PyTree order win
-when several fire in one step, so the physical conditions come before "base".
+when several fire in one step; `_transition` then redoes the segment up to
+just before that event if another condition's root came earlier.
 """
 
 from typing import ClassVar

@@ -100,6 +100,7 @@ class _Attempt(eqx.Module):
     y0: tuple
     y1: tuple
     keep: jax.Array  # the controller accepted the step
+    crossed: tuple  # per condition: it went from > 0 to <= 0 in the step
     fired: tuple  # per condition: this one ends the step (the first in order)
     g0: jax.Array  # the fired condition at t0 (> 0) and at t1 (<= 0)
     g1: jax.Array
@@ -139,20 +140,33 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         t0, t1, y0, y1, args, y_error, solver.error_order(term), ctrl_state
     )
     # Events: the first condition (in order) that goes from > 0 to <= 0.
-    fired, earlier = [], jnp.asarray(False)
+    crossed, fired, before = [], [], jnp.asarray(False)
     g0 = g1 = jnp.zeros_like(t0)
     for cond in conditions:
         v0, v1 = cond(t0, y0, args), cond(t1, y1, args)
-        hit = keep & (v0 > 0) & (v1 <= 0) & ~earlier
+        crossed.append(keep & (v0 > 0) & (v1 <= 0))
+        hit = crossed[-1] & ~before
         fired.append(hit)
-        earlier = earlier | hit
+        before = before | hit
         g0, g1 = jnp.where(hit, v0, g0), jnp.where(hit, v1, g1)
     failed = (solver_result != diffrax.RESULTS.successful) | (
         ctrl_result != diffrax.RESULTS.successful
     )
     next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
     return _Attempt(
-        t0, t1, y0, y1, keep, tuple(fired), g0, g1, dense, args, next_dt, failed
+        t0,
+        t1,
+        y0,
+        y1,
+        keep,
+        tuple(crossed),
+        tuple(fired),
+        g0,
+        g1,
+        dense,
+        args,
+        next_dt,
+        failed,
     )
 
 
@@ -207,8 +221,10 @@ def _locate(a: _Attempt, opts, unfired=()):
     """The event's time and state: bracketed Newton on [t0, t1] (the condition is
     > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
 
-    Also returns whether Newton converged within `_NEWTON` iterations, and the
-    bracket's upper end (the condition <= 0 there). From a poor start (a root
+    Also returns whether Newton converged within `_NEWTON` iterations, the
+    bracket's upper end (the condition <= 0 there), and whether another
+    condition that crossed in the step is < 0 at the event (its root came
+    first: see `_transition`'s redo). From a poor start (a root
     close to t0 in a long step, where the secant is far off) it may not: the
     lane then retries a shorter step (see `_finish`). Conditions whose index is
     in `unfired` fired in no lane of the batch and are not evaluated.
@@ -246,10 +262,20 @@ def _locate(a: _Attempt, opts, unfired=()):
         # One kernel writes an iteration's state, and the next reads it (else
         # XLA recomputes earlier iterations inside later ones).
         s, lower, upper, step = computed_once(jnp.stack([s, lower, upper, step]))
-    t = a.t0 + s * h
+    t, y = a.t0 + s * h, evaluate(s)
     # Located as `simulate` locates events; else the lane retries (`_finish`).
     converged = step * h <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
-    return t, evaluate(s), converged, a.t0 + upper * h
+    earlier = functools.reduce(
+        jnp.logical_or,
+        [
+            crossed & ~fired & (cond(t, y, a.args) < 0)
+            for i, (crossed, fired, cond) in enumerate(
+                zip(a.crossed, a.fired, conditions)
+            )
+            if i not in unfired
+        ],
+    )
+    return t, y, converged, a.t0 + upper * h, earlier
 
 
 def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
@@ -258,7 +284,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     An event whose root find did not converge rejects the step, and the next
     attempt is shorter and ends closer to the root (a better start).
     """
-    t_event, y_event, converged, upper = located
+    t_event, y_event, converged, upper, earlier = located
     retry = a.event & ~converged
     event = a.event & converged
     keep = a.keep & ~retry
@@ -274,7 +300,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     )
     result = diffrax.RESULTS.where(a.failed, diffrax.RESULTS.internal_error, result)
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
-    new = _transition(c, sol, block, base, motion, duration, opts)
+    new = _transition(c, sol, block, base, motion, duration, opts, earlier & event)
     # The next step: the controller's proposal (not the mean step of a segment).
     # After an unlocated event: at most half the step, ending at or before the
     # bracket's upper end (so each retry gets closer).
@@ -306,7 +332,8 @@ def _locate_batch(sub: _Attempt, valid, opts):
       ground motion: a batch in which every lane rocks locates with a still
       motion (a batch: 27 kernels instead of 78);
     - on an isolator, "quiet" (the base's free-vibration bounds) fires once an
-      analysis at most: a batch in which no lane fired it does not evaluate it.
+      analysis at most: a batch in which it crossed in no lane does not
+      evaluate it.
     """
 
     def locate(sub, unfired=()):
@@ -318,7 +345,7 @@ def _locate_batch(sub: _Attempt, valid, opts):
         return jax.lax.cond(translating, lambda: locate(sub), lambda: locate(rocking))
     quiet = _setup_conditions(sub.args.base).index(condition_quiet)
     return jax.lax.cond(
-        jnp.any(valid & sub.fired[quiet]),
+        jnp.any(valid & sub.crossed[quiet]),
         lambda: locate(sub),
         lambda: locate(sub, unfired=(quiet,)),
     )
@@ -357,8 +384,9 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         )
         return j + 1, located
 
-    # (time, state, converged, bracket's upper end) of each lane's event.
-    located = (a.t1, a.y1, jnp.ones_like(event), a.t1)
+    # (time, state, converged, bracket's upper end, an earlier root) of each
+    # lane's event.
+    located = (a.t1, a.y1, jnp.ones_like(event), a.t1, jnp.zeros_like(event))
     _, located = jax.lax.while_loop(
         lambda state: state[0] * batch < count, locate_batch, (0, located)
     )

@@ -8,6 +8,7 @@ is a `lax.while_loop`, so `simulate` runs under `jit` and `vmap`: a finished
 lane performs zero-length solves until every lane is done.
 """
 
+import functools
 from enum import IntEnum
 
 import diffrax
@@ -183,6 +184,8 @@ class _Carry(eqx.Module):
     kind: Int[Array, ""]
     dt: Float[Array, ""]  # next step (s): a segment's first, or the flat loop's next
     theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
+    # A redo (see `_transition`) ends the segment's steps here (s); inf: no redo.
+    t_limit: Float[Array, ""]
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -221,6 +224,7 @@ def _initial_carry(block, base, motion) -> _Carry:
         kind=jnp.asarray(EventKind.END),
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
         theta_ref=zero,
+        t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
     )
 
 
@@ -257,6 +261,7 @@ def _setup(c: _Carry, block, base, motion, duration, opts):
     )
     conditions = _setup_conditions(base)
     shaking, t_stop = _segment_end(c, motion, duration)
+    t_stop = jnp.minimum(t_stop, c.t_limit)
     max_step = motion.max_step
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = diffrax.PIDController(
@@ -299,12 +304,47 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     )
 
 
-def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
-    """Apply what ended the segment: uplift, apex, impact map, overturn, ..."""
+# A redo stops this long (s) before the event it replaces, so that event's
+# condition, located to about 1e-12 s, does not fire in the redo.
+REDO_MARGIN = 1e-9
+
+
+def _earlier_root(c: _Carry, t, y, mask, block, base, motion, duration, opts):
+    """Whether a condition other than the one that ended the segment (`mask`)
+    went from > 0 at the segment's start to < 0 at the event: its root came
+    first, in the same step (where several fire, Diffrax takes the first in
+    order, not the earliest)."""
+    _, args, conditions, *_ = _setup(c, block, base, motion, duration, opts)
+    return functools.reduce(
+        jnp.logical_or,
+        [
+            ~m & (cond(c.t, c.y, args) > 0) & (cond(t, y, args) < 0)
+            for m, cond in zip(mask, conditions)
+        ],
+    )
+
+
+def _transition(
+    c: _Carry, sol, block, base, motion, duration, opts, earlier=None
+) -> _Carry:
+    """Apply what ended the segment: uplift, apex, impact map, overturn, ...
+
+    An event that is not the earliest root in its step (`earlier`, computed by
+    `_earlier_root` unless given) is not applied: the segment is redone from
+    its start up to `REDO_MARGIN` before it (`t_limit`), where the earlier
+    root fires alone. At most one redo a segment, so that two roots closer
+    than the margin end as one event (the first in order).
+    """
     active = ~c.done & (c.segments < opts.max_segments)
     t = sol.ts[-1]
     theta, theta_dot, base_state = jax.tree_util.tree_map(lambda x: x[-1], sol.ys)
     event = sol.result == diffrax.RESULTS.event_occurred
+    if earlier is None:
+        y_event = (theta, theta_dot, base_state)
+        earlier = _earlier_root(
+            c, t, y_event, sol.event_mask, block, base, motion, duration, opts
+        )
+    redo = event & earlier & jnp.isinf(c.t_limit) & (t - 2.0 * REDO_MARGIN > c.t)
     reached_end = sol.result == diffrax.RESULTS.successful
     # A step that ends before the segment's end (the flat loop of maps) only
     # moves the state on.
@@ -459,9 +499,21 @@ def _transition(c: _Carry, sol, block, base, motion, duration, opts) -> _Carry:
             c.dt,
         ),
         kind=kind,
+        t_limit=jnp.where(event | (t >= c.t_limit), jnp.inf, c.t_limit),
     )
-    # A frozen lane keeps its carry.
-    return jax.tree_util.tree_map(lambda n, o: jnp.where(active, n, o), new, c)
+    # A frozen lane keeps its carry; a redo too, but for its limit and steps.
+    redone = eqx.tree_at(
+        lambda c: (c.t_limit, c.steps, c.kind),
+        c,
+        (
+            jnp.where(redo, t - REDO_MARGIN, c.t_limit),
+            jnp.where(redo, new.steps, c.steps),
+            jnp.where(redo, EventKind.END, c.kind),
+        ),
+    )
+    return jax.tree_util.tree_map(
+        lambda n, r: jnp.where(active & ~redo, n, r), new, redone
+    )
 
 
 def _response(c: _Carry, block, opts) -> Response:

@@ -4,6 +4,7 @@ import diffrax
 import jax
 import numpy as np
 import pytest
+import reference as ref
 
 import jaxrock as jr
 from jaxrock import _maps, _simulate
@@ -64,6 +65,25 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             )
     # The grid holds every outcome, so the comparison means something.
     assert set(np.unique(linear_map.outcome)) == {0, 1, 2}
+
+
+def test_the_earliest_of_two_events_in_one_step_wins():
+    # Regression: at (2.9, 3.5 m) a peak of |u| lies 14 ms before an apex, in
+    # the apex's step. Both engines took the first condition in order (the
+    # apex) and lost the peak: max |u| 2.4e-3 low against SciPy. The earliest
+    # root now wins (the segment is redone up to just before the apex).
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    a_cm, gamma, phase, freq = jr._ground._TABLE_3_1["San Fernando PCD/SN"]
+    acc, t_end, max_step = ref.mp_pulse(a_cm / 100, freq, gamma, phase)
+    theirs = ref.simulate(
+        2.9, 3.5, ("linear", 2.0, 0.35, 0.5), acc, t_end + 5.0, max_step
+    )
+    one = jr.simulate(jr.Block(2.9, 3.5), base, PULSE)
+    bm = jr.behavior_map([2.9], [3.5], base, PULSE, chunk_size=4, progress=False)
+    for u in (float(one.max_base_displacement), bm.max_base_displacement[0, 0]):
+        np.testing.assert_allclose(u, theirs["max_base_displacement"], rtol=1e-7)
+    assert int(one.impacts) == bm.impacts[0, 0] == theirs["impacts"]
+    assert int(one.segments) == bm.segments[0, 0]
 
 
 def test_chunking_does_not_change_results(linear_map):
