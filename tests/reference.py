@@ -50,7 +50,8 @@ def simulate(
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta).
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
-    impact_log) with impact_log entries (theta_dot-, theta_dot+, u_dot-, u_dot+).
+    impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
+    u_dot-, u_dot+) and evaluations the vector field's (SciPy's nfev).
     """
     alpha = math.atan(1 / slenderness)
     b, h = size * math.sin(alpha), size * math.cos(alpha)
@@ -115,6 +116,7 @@ def simulate(
     uplift_time = math.nan
     max_th = max_u = 0.0
     impacts = 0
+    evaluations = 0  # of the vector field (SciPy's nfev), a measure of work
     log = []
     thr = G * b / h
     if fixed:
@@ -165,6 +167,7 @@ def simulate(
             args=(0 if phase == "T" else s,),
             max_step=max_step,
         )
+        evaluations += sol.nfev
         if not fixed and len(sol.y_events[2]):
             max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
         hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]
@@ -217,4 +220,5 @@ def simulate(
         impacts=impacts,
         uplift_time=uplift_time,
         impact_log=log,
+        evaluations=evaluations,
     )
