@@ -27,7 +27,7 @@ from ._events import EVENT_ATOL, EVENT_RTOL, condition_quiet, newton_in_bracket
 from ._ground import AbstractGroundMotion
 from ._isolators import FixedBase
 from ._misc import computed_once
-from ._simulate import _setup, _setup_conditions, _transition
+from ._simulate import _setup, _setup_conditions, _transition, redo_limit
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -222,9 +222,9 @@ def _locate(a: _Attempt, opts, unfired=()):
     > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
 
     Also returns whether Newton converged within `_NEWTON` iterations, the
-    bracket's upper end (the condition <= 0 there), and whether another
-    condition that crossed in the step is < 0 at the event (its root came
-    first: see `_transition`'s redo). From a poor start (a root
+    bracket's upper end (the condition <= 0 there), and where a redo ends if
+    another condition that crossed in the step did so first (`redo_limit`;
+    inf: none). From a poor start (a root
     close to t0 in a long step, where the secant is far off) it may not: the
     lane then retries a shorter step (see `_finish`). Conditions whose index is
     in `unfired` fired in no lane of the batch and are not evaluated.
@@ -265,17 +265,15 @@ def _locate(a: _Attempt, opts, unfired=()):
     t, y = a.t0 + s * h, evaluate(s)
     # Located as `simulate` locates events; else the lane retries (`_finish`).
     converged = step * h <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
-    earlier = functools.reduce(
-        jnp.logical_or,
-        [
-            crossed & ~fired & (cond(t, y, a.args) < 0)
-            for i, (crossed, fired, cond) in enumerate(
-                zip(a.crossed, a.fired, conditions)
-            )
-            if i not in unfired
-        ],
-    )
-    return t, y, converged, a.t0 + upper * h, earlier
+    # The other conditions that crossed in the step, at its start and at the
+    # event: did one cross first (see `_transition`)?
+    candidates, values = [], []
+    for i, (crossed, fired, cond) in enumerate(zip(a.crossed, a.fired, conditions)):
+        if i not in unfired:
+            candidates.append(crossed & ~fired)
+            values.append((cond(a.t0, a.y0, a.args), cond(t, y, a.args)))
+    limit = redo_limit(a.t0, t, candidates, *zip(*values))
+    return t, y, converged, a.t0 + upper * h, limit
 
 
 def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
@@ -284,7 +282,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     An event whose root find did not converge rejects the step, and the next
     attempt is shorter and ends closer to the root (a better start).
     """
-    t_event, y_event, converged, upper, earlier = located
+    t_event, y_event, converged, upper, limit = located
     retry = a.event & ~converged
     event = a.event & converged
     keep = a.keep & ~retry
@@ -300,7 +298,8 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     )
     result = diffrax.RESULTS.where(a.failed, diffrax.RESULTS.internal_error, result)
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
-    new = _transition(c, sol, block, base, motion, duration, opts, earlier & event)
+    limit = jnp.where(event, limit, jnp.inf)
+    new = _transition(c, sol, block, base, motion, duration, opts, limit)
     # The next step: the controller's proposal (not the mean step of a segment).
     # After an unlocated event: at most half the step, ending at or before the
     # bracket's upper end (so each retry gets closer).
@@ -384,9 +383,9 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         )
         return j + 1, located
 
-    # (time, state, converged, bracket's upper end, an earlier root) of each
-    # lane's event.
-    located = (a.t1, a.y1, jnp.ones_like(event), a.t1, jnp.zeros_like(event))
+    # (time, state, converged, bracket's upper end, redo limit) of each lane's
+    # event.
+    located = (a.t1, a.y1, jnp.ones_like(event), a.t1, jnp.full_like(a.t1, jnp.inf))
     _, located = jax.lax.while_loop(
         lambda state: state[0] * batch < count, locate_batch, (0, located)
     )

@@ -8,7 +8,6 @@ is a `lax.while_loop`, so `simulate` runs under `jit` and `vmap`: a finished
 lane performs zero-length solves until every lane is done.
 """
 
-import functools
 from enum import IntEnum
 
 import diffrax
@@ -304,47 +303,58 @@ def _solve_segment(c: _Carry, block, base, motion, duration, opts, dense=False):
     )
 
 
-# A redo stops this long (s) before the event it replaces, so that event's
-# condition, located to about 1e-12 s, does not fire in the redo.
+# A redo ends at least this long (s) before the event it replaces.
 REDO_MARGIN = 1e-9
 
 
-def _earlier_root(c: _Carry, t, y, mask, block, base, motion, duration, opts):
-    """Whether a condition other than the one that ended the segment (`mask`)
-    went from > 0 at the segment's start to < 0 at the event: its root came
-    first, in the same step (where several fire, Diffrax takes the first in
-    order, not the earliest)."""
-    _, args, conditions, *_ = _setup(c, block, base, motion, duration, opts)
-    return functools.reduce(
-        jnp.logical_or,
-        [
-            ~m & (cond(c.t, c.y, args) > 0) & (cond(t, y, args) < 0)
-            for m, cond in zip(mask, conditions)
-        ],
-    )
+def redo_limit(t0, t, candidates, start_values, event_values):
+    """Where a redo ends (inf: none) when conditions among `candidates` (all
+    but the one that fired) went from > 0 at t0 to < 0 at the event t: their
+    roots came first.
+
+    Half-way from the earliest of their roots (secant estimates) to t: the redo
+    integrates its last step differently, and a root close to t could move
+    before a limit just short of it (a slow impact moved by 3e-8 s); if an
+    estimate is late, the redo ends without the earlier root, and the next
+    segment repeats this from closer.
+    """
+    limit = jnp.asarray(jnp.inf, dtype=t.dtype)
+    for candidate, v0, v1 in zip(candidates, start_values, event_values):
+        earlier = candidate & (v0 > 0) & (v1 < 0)
+        root = t0 + (t - t0) * v0 / jnp.where(earlier, v0 - v1, 1.0)
+        limit = jnp.where(earlier, jnp.minimum(limit, 0.5 * (root + t)), limit)
+    return jnp.where(jnp.isinf(limit), limit, jnp.minimum(limit, t - REDO_MARGIN))
 
 
 def _transition(
-    c: _Carry, sol, block, base, motion, duration, opts, earlier=None
+    c: _Carry, sol, block, base, motion, duration, opts, limit=None
 ) -> _Carry:
     """Apply what ended the segment: uplift, apex, impact map, overturn, ...
 
-    An event that is not the earliest root in its step (`earlier`, computed by
-    `_earlier_root` unless given) is not applied: the segment is redone from
-    its start up to `REDO_MARGIN` before it (`t_limit`), where the earlier
-    root fires alone. At most one redo a segment, so that two roots closer
-    than the margin end as one event (the first in order).
+    An event that is not the earliest root in its step (where several fire,
+    Diffrax takes the first in order) is not applied: the segment is redone
+    from its start up to `limit` (`redo_limit`, computed here from the
+    conditions at the segment's start unless given), where the earlier root
+    fires alone. No redo inside a redo, nor within 2 `REDO_MARGIN` of the
+    segment's start: roots closer than that end as one event (the first in
+    order).
     """
     active = ~c.done & (c.segments < opts.max_segments)
     t = sol.ts[-1]
     theta, theta_dot, base_state = jax.tree_util.tree_map(lambda x: x[-1], sol.ys)
     event = sol.result == diffrax.RESULTS.event_occurred
-    if earlier is None:
+    if limit is None:
+        _, args, conditions, *_ = _setup(c, block, base, motion, duration, opts)
         y_event = (theta, theta_dot, base_state)
-        earlier = _earlier_root(
-            c, t, y_event, sol.event_mask, block, base, motion, duration, opts
+        limit = redo_limit(
+            c.t,
+            t,
+            [~m for m in sol.event_mask],
+            [cond(c.t, c.y, args) for cond in conditions],
+            [cond(t, y_event, args) for cond in conditions],
         )
-    redo = event & earlier & jnp.isinf(c.t_limit) & (t - 2.0 * REDO_MARGIN > c.t)
+    redo = active & event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)
+    redo = redo & (t - 2.0 * REDO_MARGIN > c.t)
     reached_end = sol.result == diffrax.RESULTS.successful
     # A step that ends before the segment's end (the flat loop of maps) only
     # moves the state on.
@@ -506,7 +516,7 @@ def _transition(
         lambda c: (c.t_limit, c.steps, c.kind),
         c,
         (
-            jnp.where(redo, t - REDO_MARGIN, c.t_limit),
+            jnp.where(redo, limit, c.t_limit),
             jnp.where(redo, new.steps, c.steps),
             jnp.where(redo, EventKind.END, c.kind),
         ),
