@@ -9,6 +9,7 @@ Each reduction jaxrock makes is timed against the same scene without it
 - linear isolator: no hysteretic state, against z carried with zero rate, and
   against z integrated by Bouc-Wen (paper's parameters) while its force is
   zero: a one-model-for-all isolator F = k u + c u' + Q z with Q = 0;
+- friction pendulum: z in closed form (eta = 2), against z integrated;
 - a map keeps no time history: a map's cell against `simulate(history=True)`
   (2,001 samples of 7 channels, 112 kB a cell) on a sample of cells.
 
@@ -30,6 +31,15 @@ import numpy as np
 import jaxrock as jr
 
 RESULTS = Path(__file__).resolve().parent / "results"
+
+
+class IntegratedZFrictionPendulum(jr.FrictionPendulum):
+    """The friction pendulum with eta = 2, its z integrated (Bouc-Wen's ODE,
+    stiff) instead of in closed form."""
+
+    @property
+    def closed_form(self):
+        return False
 
 
 class CarriedFixedBase(jr.FixedBase):
@@ -121,6 +131,13 @@ def main():
             jr.LinearIsolator(2.0, 0.35, 0.5),
             "z by Bouc-Wen, Q = 0",
             BoucWenLinear(2.0, 0.35, 0.5),
+        ),
+        (
+            "friction pendulum",
+            "z in closed form (eta = 2)",
+            jr.FrictionPendulum(0.11, 2.24, 0.5),
+            "z integrated",
+            IntegratedZFrictionPendulum(0.11, 2.24, 0.5),
         ),
     ]
     rows, reduced_maps = [], {}

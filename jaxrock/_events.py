@@ -11,7 +11,9 @@ ends), so a segment that starts exactly on a zero does not fire again at once.
 | FALLING     | theta = 0: impact                 | theta' = 0: rising again          |
 
 "base" (isolated bases only) fires where |u| has a local maximum above the
-running maximum, so max |u| is an exact extremum, not a sampled one. "quiet"
+running maximum, so max |u| is an exact extremum, not a sampled one (a friction
+pendulum with z in closed form fires at every reversal of u' instead, see
+`condition_reversal`). "quiet"
 (isolated bases only) ends the analysis once the ground is still and the base's
 energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).

@@ -458,6 +458,7 @@ def behavior_map(
                 base=describe_base(base),
                 motion=describe_motion(motion),
                 base_leaves=_leaf_digest(base),
+                base_form=str(jax.tree_util.tree_structure(base)),  # static fields
                 motion_leaves=_leaf_digest(motion),
                 duration=float(duration),
                 chunk=chunk,

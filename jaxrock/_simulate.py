@@ -38,7 +38,7 @@ from ._events import (
     quiet,
 )
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractIsolator, FixedBase
+from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum
 from ._misc import as_float, first_true, nonnegative, positive
 
 
@@ -69,7 +69,7 @@ class EventKind(IntEnum):
     REST = 4  # impact after which rocking ends (pure translation)
     OVERTURN = 5
     REVERSAL = 6  # theta' changed sign before reaching theta = 0 (or the guard)
-    BASE_PEAK = 7  # a new maximum of |u|
+    BASE_PEAK = 7  # a new maximum of |u| (z in closed form: any reversal of u')
     FAILURE = 8
     QUIET = 9  # ground still and too little energy left to uplift or move further
 
@@ -239,7 +239,8 @@ def _setup_conditions(base):
     """The event conditions, in order: the first that fires ends the segment."""
     conditions = (condition_a, condition_b, condition_guard)
     if not isinstance(base, FixedBase):
-        conditions = conditions + (condition_base, condition_quiet)
+        peak = base.peak_condition() or condition_base
+        conditions = conditions + (peak, condition_quiet)
     return conditions
 
 
@@ -388,6 +389,7 @@ def _transition(
     theta_dot = jnp.where(hit_ground, post_theta_dot, theta_dot)
     if base_state is not None:
         base_state = jnp.where(hit_ground, post_base, base_state)
+        base_state = base.at_transition(base_state, hit_base)
     theta = jnp.where(hit_ground | uplift | settled, 0.0, theta)
     theta_dot = jnp.where(settled, 0.0, theta_dot)
 
@@ -573,7 +575,7 @@ def _segment_dense(c, block, base, motion, duration, opts, grid):
     return new, inside, ys
 
 
-def _rows(t, y, regime) -> np.ndarray:
+def _rows(t, y, regime, base) -> np.ndarray:
     """History rows (t, theta, theta', u, u', z, regime) from states at times t."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
     out = np.zeros((t.size, 7))
@@ -581,8 +583,10 @@ def _rows(t, y, regime) -> np.ndarray:
     out[:, 1] = np.asarray(y[0]).reshape(t.size)
     out[:, 2] = np.asarray(y[1]).reshape(t.size)
     if y[2] is not None:
-        base = np.asarray(y[2]).reshape(t.size, -1)
-        out[:, 3 : 3 + base.shape[1]] = base
+        states = jnp.asarray(y[2]).reshape(t.size, -1)
+        out[:, 3:5] = np.asarray(states[:, :2])
+        if isinstance(base, FrictionPendulum):
+            out[:, 5] = np.asarray(jax.vmap(base.hysteretic)(states))
     out[:, 6] = regime
     return out
 
@@ -611,7 +615,7 @@ def _history(block, base, motion, duration, opts, samples=2001):
     def regime(carry):
         return 0.0 if int(carry.phase) == Phase.TRANSLATION else float(carry.sign)
 
-    rows = [_rows(c.t, c.y, regime(c))]
+    rows = [_rows(c.t, c.y, regime(c), base)]
     times, kinds = ([0.0], ["uplift"]) if bool(c.rocked) else ([], [])
     while not bool(c.done) and int(c.segments) < opts.max_segments:
         new, inside, ys = _segment_dense(c, block, base, motion, duration, opts, grid)
@@ -619,7 +623,10 @@ def _history(block, base, motion, duration, opts, samples=2001):
         inside[-1] = True  # grid[-1] is clipped to new.t: the state before the event
         take = jax.tree_util.tree_map(lambda x: np.asarray(x)[inside], ys)
         ts = np.where(np.arange(samples) == samples - 1, float(new.t), grid)[inside]
-        rows += [_rows(ts, take, regime(c)), _rows(new.t, new.y, regime(new))]
+        rows += [
+            _rows(ts, take, regime(c), base),
+            _rows(new.t, new.y, regime(new), base),
+        ]
         kind = EventKind(int(new.kind))
         if kind != EventKind.END:
             times.append(float(new.t))

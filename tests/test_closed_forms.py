@@ -250,3 +250,46 @@ def test_free_rocking_time_from_apex_matches_an_ode(lam, size, apex, to):
     )
     expected = sol.t_events[0][0]
     assert float(time_from_apex(p, x, k, x - k)) == pytest.approx(expected, rel=1e-10)
+
+
+@pytest.mark.parametrize(
+    "A, gamma, beta, Y",
+    [(1.0, 0.9, 0.1, 5e-4), (1.2, 0.3, 0.7, 1e-3)],  # paper's; |z| shrinking like tanh
+)
+def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
+    """eta = 2: z explicit in u along each monotone stretch, restarted at each
+    reversal of u', against Bouc-Wen's ODE integrated along the same u(t)."""
+    import jax
+    import jax.numpy as jnp
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    base = jr.FrictionPendulum(0.11, 2.24, 0.5, Y, A, gamma, beta)
+    assert base.closed_form and base.n_states == 5
+
+    def u(t):  # reversals of uneven amplitude, some within a few Y
+        return 0.004 * np.sin(2 * np.pi * t) + 0.0025 * np.sin(9.0 * t)
+
+    def u_dot(t):
+        return 0.008 * np.pi * np.cos(2 * np.pi * t) + 0.0225 * np.cos(9.0 * t)
+
+    def z_dot(t, z):
+        v = u_dot(t)
+        return [(A * v - gamma * abs(v) * z[0] * abs(z[0]) - beta * v * z[0] ** 2) / Y]
+
+    ts = np.linspace(0.0, 3.0, 601)
+    ode = solve_ivp(z_dot, (0, 3), [0.0], t_eval=ts, rtol=1e-12, atol=1e-14).y[0]
+    hysteretic = jax.jit(lambda s: base.hysteretic(s))
+    turn = jax.jit(lambda s: base.at_transition(s, jnp.asarray(True)))
+    state = np.zeros(5)
+    closed, reversals = [], 0
+    for a, b in zip(np.r_[ts[0], ts[:-1]], ts):
+        if u_dot(a) * u_dot(b) < 0:  # a reversal: the memory restarts there
+            r = brentq(u_dot, a, b, xtol=1e-15)
+            state = np.array(turn(np.array([u(r), 0.0, *state[2:]])))
+            reversals += 1
+        state[:2] = u(b), u_dot(b)
+        closed.append(float(hysteretic(jnp.asarray(state))))
+    assert reversals >= 6
+    assert np.max(np.abs(ode)) > 0.9  # z saturates, and comes back
+    np.testing.assert_allclose(closed, ode, atol=1e-9)

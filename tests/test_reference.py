@@ -106,3 +106,23 @@ def test_cases_cover_every_regime(results):
         assert any(t["outcome"] == 2 for t in seen), key
         assert any(t["outcome"] == 1 and t["impacts"] >= 5 for t in seen), key
         assert any(t["impacts"] == 1 for t in seen), key
+
+
+@pytest.mark.parametrize("case", [CASES[1], CASES[2], CASES[9]], ids=str)
+def test_friction_pendulum_with_z_integrated_matches_reference(case):
+    """eta != 2: z is integrated (Bouc-Wen's ODE), not in closed form."""
+    name, lam, r, scale = case
+    motion, (acc, t_end, max_step) = _pulse(name, scale)
+    base = jr.FrictionPendulum(0.11, 2.24, 0.5, eta=3.0)
+    assert not base.closed_form
+    ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
+    ref_base = ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 3.0)
+    theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
+    assert int(ours.outcome) == theirs["outcome"]
+    assert int(ours.impacts) == theirs["impacts"]
+    np.testing.assert_allclose(
+        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
+    )

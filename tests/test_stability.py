@@ -13,19 +13,22 @@ A, FREQ, GAMMA, PHASE = 1.15, 0.68, 1.6, 180.0
 
 
 def test_bouc_wen_stiffness_drives_the_step_count_and_limits_are_reported():
-    """Smaller yield displacement Y = stiffer z: the explicit step count grows
-    about as 1/Y; a segment that runs out of steps says so in `status`."""
+    """Smaller yield displacement Y = stiffer z: with z integrated (eta != 2)
+    the explicit step count grows about as 1/Y; with eta = 2, z in closed form,
+    it hardly moves. A segment that runs out of steps says so in `status`."""
     block = jr.Block(2.0, 1.0)  # never rocks: the base alone
     steps = {}
-    for y in (5e-4, 5e-5):
-        r = jr.simulate(
-            block, jr.FrictionPendulum(0.11, 2.24, 0.5, yield_displacement=y), PULSE
-        )
-        assert int(r.status) == jr.Status.SUCCESS
-        steps[y] = int(r.steps)
-    assert steps[5e-5] > 3 * steps[5e-4]
+    for eta in (2.0, 3.0):
+        for y in (5e-4, 5e-5):
+            base = jr.FrictionPendulum(0.11, 2.24, 0.5, yield_displacement=y, eta=eta)
+            r = jr.simulate(block, base, PULSE)
+            assert int(r.status) == jr.Status.SUCCESS
+            steps[eta, y] = int(r.steps)
+    assert steps[3.0, 5e-5] > 3 * steps[3.0, 5e-4]
+    assert steps[2.0, 5e-5] < 1.5 * steps[2.0, 5e-4]
+    assert 3 * steps[2.0, 5e-4] < steps[3.0, 5e-4]
     capped = jr.simulate(
-        block, jr.FrictionPendulum(0.11, 2.24, 0.5), PULSE, max_steps=200
+        block, jr.FrictionPendulum(0.11, 2.24, 0.5, eta=3.0), PULSE, max_steps=200
     )
     assert int(capped.status) == jr.Status.MAX_STEPS
     assert not bool(capped.ok) and "not converged" in capped.summary()
