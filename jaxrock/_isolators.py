@@ -203,8 +203,9 @@ class FrictionPendulum(AbstractIsolator):
         unload = (zeta0 + a * s) / (1.0 + unloading * zeta0 * s)
         # Growing: from the stretch's start, or from 0 once past w0.
         start = jnp.where(shrinking, 0.0, zeta0)
+        # (a c > 0 while loading: tanh only)
         s = _solution_sine(
-            loading, a, jnp.where(shrinking, jnp.maximum(w - w0, 0.0), w)
+            loading, a, jnp.where(shrinking, jnp.maximum(w - w0, 0.0), w), True
         )
         load = (start + a * s) / (1.0 + loading * start * s)
         zeta = jnp.where(shrinking & (w < w0), unload, load)
@@ -287,19 +288,22 @@ class FrictionPendulum(AbstractIsolator):
         return self.mass_ratio / (1.0 + self.mass_ratio)
 
 
-def _solution_sine(c, a, w):
+def _solution_sine(c, a, w, positive=False):
     """S(w) with S(0) = 0 and S' = 1 - a c S^2, for w >= 0: tanh(q w) / q
     (a c = q^2 > 0), tan(q w) / q (a c = -q^2 < 0), w (c = 0). Then
     zeta(w) = (zeta0 + a S) / (1 + c zeta0 S) solves zeta' = a - c zeta^2.
     tanh by `exp` and tan by the polynomial `sincos`: XLA's float64 tanh,
-    tan and arctan are scalar library calls, slow on the CPU."""
+    tan and arctan are scalar library calls, slow on the CPU. `positive`:
+    a c > 0 is known (no tan to compile)."""
     x = a * c * w * w
     q = jnp.sqrt(jnp.abs(a * c))
     safe_q = jnp.where(q == 0, 1.0, q)
     e = jnp.exp(-2.0 * safe_q * w)
-    sin, cos = sincos(safe_q * w)
-    big = jnp.where(x > 0, (1.0 - e) / (1.0 + e), sin / cos) / safe_q
-    return jnp.where(jnp.abs(x) < 1e-12, w * (1.0 - x / 3.0), big)
+    big = (1.0 - e) / (1.0 + e)
+    if not positive:
+        sin, cos = sincos(safe_q * w)
+        big = jnp.where(x > 0, big, sin / cos)
+    return jnp.where(jnp.abs(x) < 1e-12, w * (1.0 - x / 3.0), big / safe_q)
 
 
 def _solution_sine_inverse(c, a, v):

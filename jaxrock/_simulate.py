@@ -575,18 +575,17 @@ def _segment_dense(c, block, base, motion, duration, opts, grid):
     return new, inside, ys
 
 
-def _rows(t, y, regime, base) -> np.ndarray:
-    """History rows (t, theta, theta', u, u', z, regime) from states at times t."""
+def _rows(t, y, regime) -> np.ndarray:
+    """History rows (t, theta, theta', u, u', regime, base state...) from states
+    at times t (z is computed from the base state at the end, `_history`)."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    out = np.zeros((t.size, 7))
+    states = np.zeros((t.size, 0)) if y[2] is None else np.asarray(y[2])
+    out = np.zeros((t.size, 7 + states.size // t.size))
     out[:, 0] = t
     out[:, 1] = np.asarray(y[0]).reshape(t.size)
     out[:, 2] = np.asarray(y[1]).reshape(t.size)
-    if y[2] is not None:
-        states = jnp.asarray(y[2]).reshape(t.size, -1)
-        out[:, 3:5] = np.asarray(states[:, :2])
-        if isinstance(base, FrictionPendulum):
-            out[:, 5] = np.asarray(jax.vmap(base.hysteretic)(states))
+    out[:, 7:] = states.reshape(t.size, -1)
+    out[:, 3:5] = out[:, 7:9] if states.size else 0.0
     out[:, 6] = regime
     return out
 
@@ -603,6 +602,19 @@ def _acceleration_at(motion, t: np.ndarray) -> np.ndarray:
     return np.asarray(_acceleration(motion, padded))[: t.size]
 
 
+@eqx.filter_jit
+def _hysteretic(base, states):
+    return jax.vmap(base.hysteretic)(states)
+
+
+def _hysteretic_at(base, states: np.ndarray) -> np.ndarray:
+    """The friction pendulum's z from its base states (rows), compiled like
+    `_acceleration_at`."""
+    n = states.shape[0]
+    padded = np.pad(states, ((0, (1 << (n - 1).bit_length()) - n), (0, 0)), mode="edge")
+    return np.asarray(_hysteretic(base, padded))[:n]
+
+
 def _history(block, base, motion, duration, opts, samples=2001):
     """The same segments in a Python loop, sampled on a grid and at every event.
 
@@ -615,7 +627,7 @@ def _history(block, base, motion, duration, opts, samples=2001):
     def regime(carry):
         return 0.0 if int(carry.phase) == Phase.TRANSLATION else float(carry.sign)
 
-    rows = [_rows(c.t, c.y, regime(c), base)]
+    rows = [_rows(c.t, c.y, regime(c))]
     times, kinds = ([0.0], ["uplift"]) if bool(c.rocked) else ([], [])
     while not bool(c.done) and int(c.segments) < opts.max_segments:
         new, inside, ys = _segment_dense(c, block, base, motion, duration, opts, grid)
@@ -623,16 +635,15 @@ def _history(block, base, motion, duration, opts, samples=2001):
         inside[-1] = True  # grid[-1] is clipped to new.t: the state before the event
         take = jax.tree_util.tree_map(lambda x: np.asarray(x)[inside], ys)
         ts = np.where(np.arange(samples) == samples - 1, float(new.t), grid)[inside]
-        rows += [
-            _rows(ts, take, regime(c), base),
-            _rows(new.t, new.y, regime(new), base),
-        ]
+        rows += [_rows(ts, take, regime(c)), _rows(new.t, new.y, regime(new))]
         kind = EventKind(int(new.kind))
         if kind != EventKind.END:
             times.append(float(new.t))
             kinds.append(kind.name.lower())
         c = new
     h = np.concatenate(rows)
+    if isinstance(base, FrictionPendulum):
+        h[:, 5] = _hysteretic_at(base, h[:, 7:])
     history = History(
         t=h[:, 0],
         theta=h[:, 1],
