@@ -25,7 +25,7 @@ import numpy as np
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, condition_quiet, newton_in_bracket
 from ._ground import AbstractGroundMotion
-from ._isolators import FixedBase
+from ._isolators import AbstractIsolator, FixedBase
 from ._misc import computed_once
 from ._simulate import _setup, _setup_conditions, _transition, redo_limit
 
@@ -322,6 +322,34 @@ class _Still(AbstractGroundMotion):
         return jnp.asarray(0.0)
 
 
+class _ForceFree(AbstractIsolator):
+    """An isolated base without its force: what the root find of rocking lanes
+    reads of it (their conditions are the block's angles, the base's u and
+    u'; the force, a friction pendulum's z among it, enters only the uplift
+    conditions of pure translation)."""
+
+    base: AbstractIsolator
+
+    def initial_state(self):
+        return self.base.initial_state()
+
+    def force(self, state):
+        return jnp.zeros_like(state[0])
+
+    def rates(self, state, u_ddot):
+        return self.base.rates(state, u_ddot)
+
+    @property
+    def block_mass_fraction(self):
+        return self.base.block_mass_fraction
+
+    def peak_condition(self):
+        return self.base.peak_condition()
+
+    def free_vibration_bounds(self, state):
+        return self.base.free_vibration_bounds(state)
+
+
 def _locate_batch(sub: _Attempt, valid, opts):
     """`_locate` on a batch of lanes (leading axis; `valid`: real lanes).
 
@@ -330,23 +358,25 @@ def _locate_batch(sub: _Attempt, valid, opts):
     - on a fixed base only the uplift conditions (pure translation) read the
       ground motion: a batch in which every lane rocks locates with a still
       motion (a batch: 27 kernels instead of 78);
-    - on an isolator, "quiet" (the base's free-vibration bounds) fires once an
-      analysis at most: a batch in which it crossed in no lane does not
-      evaluate it.
+    - likewise on an isolator the force (and a friction pendulum's z, costly
+      in closed form) enters only the uplift conditions, and "quiet" (the
+      base's free-vibration bounds, armed in translation only) too: a batch in
+      which every lane rocks evaluates neither.
     """
 
     def locate(sub, unfired=()):
         return jax.vmap(lambda a: _locate(a, opts, unfired))(sub)
 
+    translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
     if isinstance(sub.args.base, FixedBase):
-        translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
         rocking = eqx.tree_at(lambda s: s.args.motion, sub, _Still())
         return jax.lax.cond(translating, lambda: locate(sub), lambda: locate(rocking))
+    rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
     quiet = _setup_conditions(sub.args.base).index(condition_quiet)
     return jax.lax.cond(
-        jnp.any(valid & sub.crossed[quiet]),
+        translating,
         lambda: locate(sub),
-        lambda: locate(sub, unfired=(quiet,)),
+        lambda: locate(rocking, unfired=(quiet,)),
     )
 
 
