@@ -224,9 +224,9 @@ def _locate(a: _Attempt, opts, unfired=()):
     Also returns whether Newton converged within `_NEWTON` iterations, the
     bracket's upper end (the condition <= 0 there), and where a redo ends if
     another condition that crossed in the step did so first (`redo_limit`;
-    inf: none). From a poor start (a root
-    close to t0 in a long step, where the secant is far off) it may not: the
-    lane then retries a shorter step (see `_finish`). Conditions whose index is
+    inf: none). From a poor start (a root close to t0 in a long step, where
+    the secant is far off) Newton may not converge: the lane then retries a
+    shorter step (see `_finish`). Conditions whose index is
     in `unfired` fired in no lane of the batch and are not evaluated.
 
     Newton runs in s = (t - t0) / h on the dense output in s, its iterations
