@@ -298,7 +298,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     )
     result = diffrax.RESULTS.where(a.failed, diffrax.RESULTS.internal_error, result)
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
-    limit = jnp.where(event, limit, jnp.inf)
+    # (A redo needs an event: `limit` of other lanes is unused.)
     new = _transition(c, sol, block, base, motion, duration, opts, limit)
     # The next step: the controller's proposal (not the mean step of a segment).
     # After an unlocated event: at most half the step, ending at or before the

@@ -576,8 +576,9 @@ def _segment_dense(c, block, base, motion, duration, opts, grid):
 
 
 def _rows(t, y, regime) -> np.ndarray:
-    """History rows (t, theta, theta', u, u', regime, base state...) from states
-    at times t (z is computed from the base state at the end, `_history`)."""
+    """History rows (t, theta, theta', u, u', z, regime, base state...) from
+    states at times t; z is left 0 (`_history` computes it from the base
+    states of all rows at once)."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
     states = np.zeros((t.size, 0)) if y[2] is None else np.asarray(y[2])
     out = np.zeros((t.size, 7 + states.size // t.size))
@@ -595,24 +596,18 @@ def _acceleration(motion, t):
     return jax.vmap(motion.acceleration)(t)
 
 
-def _acceleration_at(motion, t: np.ndarray) -> np.ndarray:
-    """x_g''(t), compiled (op by op it took seconds); t padded to a power of two
-    so that histories of other lengths reuse a handful of compiles."""
-    padded = np.pad(t, (0, (1 << (t.size - 1).bit_length()) - t.size), mode="edge")
-    return np.asarray(_acceleration(motion, padded))[: t.size]
-
-
 @eqx.filter_jit
 def _hysteretic(base, states):
     return jax.vmap(base.hysteretic)(states)
 
 
-def _hysteretic_at(base, states: np.ndarray) -> np.ndarray:
-    """The friction pendulum's z from its base states (rows), compiled like
-    `_acceleration_at`."""
-    n = states.shape[0]
-    padded = np.pad(states, ((0, (1 << (n - 1).bit_length()) - n), (0, 0)), mode="edge")
-    return np.asarray(_hysteretic(base, padded))[:n]
+def _rowwise(f, module, x: np.ndarray) -> np.ndarray:
+    """f(module, x) for a history's rows x, compiled (op by op it took
+    seconds); the rows padded to a power of two so that histories of other
+    lengths reuse a handful of compiles."""
+    n = x.shape[0]
+    pad = [(0, (1 << (n - 1).bit_length()) - n)] + [(0, 0)] * (x.ndim - 1)
+    return np.asarray(f(module, np.pad(x, pad, mode="edge")))[:n]
 
 
 def _history(block, base, motion, duration, opts, samples=2001):
@@ -643,7 +638,7 @@ def _history(block, base, motion, duration, opts, samples=2001):
         c = new
     h = np.concatenate(rows)
     if isinstance(base, FrictionPendulum):
-        h[:, 5] = _hysteretic_at(base, h[:, 7:])
+        h[:, 5] = _rowwise(_hysteretic, base, h[:, 7:])  # z
     history = History(
         t=h[:, 0],
         theta=h[:, 1],
@@ -652,7 +647,7 @@ def _history(block, base, motion, duration, opts, samples=2001):
         u_dot=h[:, 4],
         z=h[:, 5],
         regime=h[:, 6],
-        ground_acceleration=_acceleration_at(motion, h[:, 0]),
+        ground_acceleration=_rowwise(_acceleration, motion, h[:, 0]),
         event_times=np.asarray(times),
         event_kinds=tuple(kinds),
         alpha=float(block.alpha),
