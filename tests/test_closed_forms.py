@@ -2,9 +2,12 @@
 
 import math
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.integrate import quad
+from scipy.integrate import quad, solve_ivp
+from scipy.optimize import brentq
 
 import jaxrock as jr
 
@@ -259,11 +262,6 @@ def test_free_rocking_time_from_apex_matches_an_ode(lam, size, apex, to):
 def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
     """eta = 2: z explicit in u along each monotone stretch, restarted at each
     reversal of u', against Bouc-Wen's ODE integrated along the same u(t)."""
-    import jax
-    import jax.numpy as jnp
-    from scipy.integrate import solve_ivp
-    from scipy.optimize import brentq
-
     base = jr.FrictionPendulum(0.11, 2.24, 0.5, Y, A, gamma, beta)
     assert base.closed_form and base.n_states == 5
 
