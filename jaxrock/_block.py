@@ -1,28 +1,42 @@
 """The rigid block."""
 
-import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._misc import GRAVITY, as_float, positive
+from ._misc import GRAVITY, AbstractChecked, Constraint, parameter
 
 
-class Block(eqx.Module):
+class Block(AbstractChecked):
     """A rectangular rigid block, 2b wide and 2h high (SI units).
 
-    `slenderness` is lambda = h / b (> 0) and `size` is r = sqrt(b^2 + h^2) (m), the
-    half-diagonal. Derived: alpha = atan(b / h) (rad), b = r sin(alpha),
-    h = r cos(alpha), and the frequency parameter p = sqrt(3 g / (4 r)) (rad/s).
+    `slenderness` is lambda = h / b (0.01 to 1000) and `size` is
+    r = sqrt(b^2 + h^2) (m, 0.001 to 1000), the half-diagonal. Derived:
+    alpha = atan(b / h) (rad), b = r sin(alpha), h = r cos(alpha), and the
+    frequency parameter p = sqrt(3 g / (4 r)) (rad/s).
     Results do not depend on the block's mass, only on the mass ratio of the base.
     Both fields may carry batch axes (for `vmap`).
     """
 
-    slenderness: Float[Array, "..."] = eqx.field(converter=as_float)
-    size: Float[Array, "..."] = eqx.field(converter=as_float)
+    slenderness: Float[Array, "..."] = parameter("slenderness")
+    size: Float[Array, "..."] = parameter("size")
 
-    def __check_init__(self):
-        positive("slenderness", self.slenderness)
-        positive("size", self.size)
+    def constraints(self):
+        # Beyond these bounds b, h or alpha lose their precision in float64 long
+        # before the shape stops being physical.
+        return [
+            Constraint(
+                "slenderness",
+                self.slenderness,
+                lambda v: (v >= 0.01) & (v <= 1000),
+                "finite, >= 0.01 and <= 1000",
+            ),
+            Constraint(
+                "size",
+                self.size,
+                lambda v: (v >= 1e-3) & (v <= 1000),
+                "finite, >= 0.001 and <= 1000 (m)",
+            ),
+        ]
 
     @property
     def alpha(self) -> Float[Array, "..."]:

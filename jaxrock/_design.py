@@ -14,6 +14,7 @@ branch the evaluation took: check `DesignResult.overturned` and the impact
 counts before trusting a gradient there.
 """
 
+import math
 from collections.abc import Callable
 
 import equinox as eqx
@@ -25,6 +26,7 @@ import optax
 from ._block import Block
 from ._ground import AbstractGroundMotion, Record
 from ._isolators import AbstractIsolator
+from ._misc import is_count
 from ._simulate import Outcome, Response, SolverOptions, run
 
 
@@ -106,6 +108,46 @@ def isolator_objective(
     return objective
 
 
+def _real(name: str, value) -> float:
+    """`value` as a finite float (`ValueError` naming `name` otherwise)."""
+    kind = np.asarray(value).dtype.kind if value is not None else None
+    if kind not in ("f", "i", "u") or np.ndim(value) != 0:
+        raise ValueError(f"`{name}` must be a real number, got {value!r}")
+    if not math.isfinite(float(value)):
+        raise ValueError(f"`{name}` must be finite, got {value!r}")
+    return float(value)
+
+
+def _check_design(init, bounds, capacity, penalty, steps, learning_rate) -> list:
+    """`tune_isolator`'s arguments, checked before anything compiles; returns
+    the design variables' names."""
+    if not isinstance(init, dict) or not init:
+        raise ValueError(
+            "`init` must be a non-empty dict of design parameters (name -> value), "
+            f"got {init!r}"
+        )
+    names = sorted(init)
+    if not isinstance(bounds, dict) or set(bounds) != set(names):
+        raise ValueError(f"`bounds` must give (low, high) for each of {names}")
+    for k in names:
+        if np.shape(bounds[k]) != (2,):
+            raise ValueError(f"bounds[{k!r}] must be (low, high), got {bounds[k]!r}")
+        lo, hi = (_real(f"bounds[{k!r}]", v) for v in bounds[k])
+        if not lo < hi:
+            raise ValueError(f"bounds[{k!r}] must have low < high, got {bounds[k]}")
+        if not lo <= _real(f"init[{k!r}]", init[k]) <= hi:
+            raise ValueError(f"init[{k!r}] = {init[k]} is outside bounds {bounds[k]}")
+    if not _real("capacity", capacity) > 0:
+        raise ValueError(f"`capacity` must be finite and > 0 (m), got {capacity}")
+    if not _real("penalty", penalty) >= 0:
+        raise ValueError(f"`penalty` must be finite and >= 0, got {penalty}")
+    if not _real("learning_rate", learning_rate) > 0:
+        raise ValueError(f"`learning_rate` must be finite and > 0, got {learning_rate}")
+    if not is_count(steps) or steps < 0:
+        raise ValueError(f"`steps` must be an integer >= 0, got {steps!r}")
+    return names
+
+
 class DesignResult(eqx.Module):
     """History of an isolator optimisation, one row per evaluated iterate.
 
@@ -170,15 +212,7 @@ def tune_isolator(
     design variables and shapes, shared by every `make_base` (a new lambda
     does not recompile).
     """
-    names = sorted(init)
-    if set(bounds) != set(names):
-        raise ValueError(f"`bounds` must give (low, high) for each of {names}")
-    for k in names:
-        lo, hi = bounds[k]
-        if not lo < hi:
-            raise ValueError(f"bounds[{k!r}] must have low < high, got {bounds[k]}")
-        if not lo <= init[k] <= hi:
-            raise ValueError(f"init[{k!r}] = {init[k]} is outside bounds {bounds[k]}")
+    names = _check_design(init, bounds, capacity, penalty, steps, learning_rate)
     lo = {k: float(bounds[k][0]) for k in names}
     width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
     opts = SolverOptions(rtol=rtol, atol=atol)
@@ -192,6 +226,13 @@ def tune_isolator(
 
     def base_at(x):
         return make_base({k: lo[k] + width[k] * x[k] for k in names})
+
+    base = base_at({k: (init[k] - lo[k]) / width[k] for k in names})
+    if not isinstance(base, AbstractIsolator) or base.n_states == 0:
+        raise ValueError(
+            "`make_base` must return an isolated base (LinearIsolator or "
+            f"FrictionPendulum) built from the parameters, got {type(base).__name__}"
+        )
 
     units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
 

@@ -48,6 +48,11 @@ def fit_lognormal(im, failed, steps: int = 2000):
     """
     im = np.asarray(im, dtype=float)
     failed = np.asarray(failed, dtype=bool)
+    if im.ndim != 1 or failed.shape != im.shape:
+        raise ValueError(
+            "`im` and `failed` must be 1-D arrays of one length, got shapes "
+            f"{im.shape} and {failed.shape}"
+        )
     positive("im", im)
     if failed.all() or not failed.any():
         return float("nan"), float("nan")
@@ -125,6 +130,12 @@ def fragility(
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     outcome = bm.outcome.reshape(-1)
     pga, pgv = _peaks(motions)
+    if not (np.all(pga > 0) and np.all(pgv > 0)):
+        raise ValueError(
+            "every motion of `motions` must move the ground (an intensity measure "
+            f"> 0): {int(np.sum(~((pga > 0) & (pgv > 0))))} of them have zero "
+            "amplitude"
+        )
     pga = np.broadcast_to(pga, outcome.shape)
     pgv = np.broadcast_to(pgv, outcome.shape)
     im = {"pga": pga, "pgv": pgv, "pga_ratio": pga * slenderness / GRAVITY}[measure]

@@ -2,16 +2,22 @@
 
 import abc
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._misc import as_float, check, positive
+from ._misc import (
+    AbstractChecked,
+    Constraint,
+    finite,
+    greater_than_zero,
+    parameter,
+    real_number,
+)
 from ._trig import sincos
 
 
-class AbstractGroundMotion(eqx.Module):
+class AbstractGroundMotion(AbstractChecked):
     """Horizontal ground acceleration x_g''(t) (m/s^2), zero before t = 0."""
 
     @abc.abstractmethod
@@ -56,27 +62,41 @@ class MPPulse(AbstractGroundMotion):
     t0 = gamma / (2 f_p), so that the pulse starts at t = 0.
     """
 
-    amplitude: Float[Array, "..."] = eqx.field(converter=as_float)
-    frequency: Float[Array, "..."] = eqx.field(converter=as_float)
-    gamma: Float[Array, "..."] = eqx.field(converter=as_float)
-    phase: Float[Array, "..."] = eqx.field(converter=as_float)
-    t0: Float[Array, "..."] = eqx.field(converter=as_float)
+    amplitude: Float[Array, "..."] = parameter("amplitude")
+    frequency: Float[Array, "..."] = parameter("frequency")
+    gamma: Float[Array, "..."] = parameter("gamma")
+    phase: Float[Array, "..."] = parameter("phase")
+    t0: Float[Array, "..."] = parameter("t0")
 
     def __init__(self, amplitude, frequency, gamma, phase, t0=None):
         self.amplitude = amplitude
         self.frequency = frequency
         self.gamma = gamma
         self.phase = phase
-        self.t0 = 0.5 * as_float(gamma) / as_float(frequency) if t0 is None else t0
+        if t0 is None:
+            t0 = 0.5 * real_number("gamma", gamma) / real_number("frequency", frequency)
+        self.t0 = t0
 
-    def __check_init__(self):
-        check("amplitude", self.amplitude, lambda v: v == v, "finite")
-        positive("frequency", self.frequency)
+    def constraints(self):
         # `sincos` is exact for arguments below 8e5 rad; the pulse's stay below
         # pi gamma + |nu|, so both get a bound far above any physical pulse.
-        check("gamma", self.gamma, lambda v: (v > 1) & (v <= 1e5), "> 1 and <= 1e5")
-        check("phase", self.phase, lambda v: abs(v) <= 1e6, "within +-1e6 degrees")
-        check("t0", self.t0, lambda v: v == v, "finite")
+        return [
+            finite("amplitude", self.amplitude),
+            greater_than_zero("frequency", self.frequency),
+            Constraint(
+                "gamma", self.gamma, lambda v: (v > 1) & (v <= 1e5), "> 1 and <= 1e5"
+            ),
+            Constraint(
+                "phase", self.phase, lambda v: abs(v) <= 1e6, "within +-1e6 degrees"
+            ),
+            # The pulse must end after t = 0, where the analysis starts.
+            Constraint(
+                "t0",
+                self.t0,
+                lambda v: v + self.half_duration > 0,
+                "> -gamma / (2 f_p) (a pulse that ends after t = 0)",
+            ),
+        ]
 
     @property
     def half_duration(self):
@@ -124,12 +144,14 @@ class SinePulse(AbstractGroundMotion):
     literature's overturning spectra (Makris & Roussos 2000, type A).
     """
 
-    amplitude: Float[Array, "..."] = eqx.field(converter=as_float)
-    frequency: Float[Array, "..."] = eqx.field(converter=as_float)
+    amplitude: Float[Array, "..."] = parameter("amplitude")
+    frequency: Float[Array, "..."] = parameter("frequency")
 
-    def __check_init__(self):
-        check("amplitude", self.amplitude, lambda v: v == v, "finite")
-        positive("frequency", self.frequency)
+    def constraints(self):
+        return [
+            finite("amplitude", self.amplitude),
+            greater_than_zero("frequency", self.frequency),
+        ]
 
     def acceleration(self, t):
         a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
@@ -157,8 +179,8 @@ class Record(AbstractGroundMotion):
     The samples are kept as `samples`.
     """
 
-    samples: Float[Array, " n"] = eqx.field(converter=as_float)
-    dt: Float[Array, ""] = eqx.field(converter=as_float)
+    samples: Float[Array, " n"] = parameter("acceleration")
+    dt: Float[Array, ""] = parameter("dt")
 
     def __init__(self, acceleration, dt):
         self.samples = acceleration
@@ -171,8 +193,14 @@ class Record(AbstractGroundMotion):
                 "`acceleration` must be a 1-D array of at least 2 samples, got shape "
                 f"{np.shape(samples)}"
             )
-        check("acceleration", samples, lambda v: v == v, "finite (no NaN or inf)")
-        positive("dt", self.dt)
+
+    def constraints(self):
+        return [
+            Constraint(
+                "acceleration", self.samples, lambda v: v == v, "finite (no NaN or inf)"
+            ),
+            greater_than_zero("dt", self.dt),
+        ]
 
     def acceleration(self, t):
         a = self.samples

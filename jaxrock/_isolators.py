@@ -15,11 +15,20 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._misc import GRAVITY, as_float, check, computed_once, nonnegative, positive
+from ._misc import (
+    GRAVITY,
+    AbstractChecked,
+    Constraint,
+    at_least_zero,
+    computed_once,
+    finite,
+    greater_than_zero,
+    parameter,
+)
 from ._trig import sincos
 
 
-class AbstractIsolator(eqx.Module):
+class AbstractIsolator(AbstractChecked):
     """What lies between the ground and the block.
 
     `n_states` is the size of the base state (0: no base degree of freedom).
@@ -99,15 +108,17 @@ class LinearIsolator(AbstractIsolator):
     The paper's values are T_s = 2 s, xi = 0.35, mass ratio 0.5.
     """
 
-    period: Float[Array, "..."] = eqx.field(converter=as_float)
-    damping: Float[Array, "..."] = eqx.field(converter=as_float)
-    mass_ratio: Float[Array, "..."] = eqx.field(converter=as_float)
+    period: Float[Array, "..."] = parameter("period")
+    damping: Float[Array, "..."] = parameter("damping")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio")
     n_states: ClassVar[int] = 2
 
-    def __check_init__(self):
-        positive("period", self.period)
-        nonnegative("damping", self.damping)
-        positive("mass_ratio", self.mass_ratio)
+    def constraints(self):
+        return [
+            greater_than_zero("period", self.period),
+            at_least_zero("damping", self.damping),
+            greater_than_zero("mass_ratio", self.mass_ratio),
+        ]
 
     def initial_state(self):
         return jnp.zeros(2, dtype=self.period.dtype)
@@ -156,26 +167,30 @@ class FrictionPendulum(AbstractIsolator):
     Other eta: z is integrated, and the state is (u, u', z).
     """
 
-    friction: Float[Array, "..."] = eqx.field(converter=as_float)
-    radius: Float[Array, "..."] = eqx.field(converter=as_float)
-    mass_ratio: Float[Array, "..."] = eqx.field(converter=as_float)
-    yield_displacement: Float[Array, "..."] = eqx.field(
-        default=5e-4, converter=as_float
+    friction: Float[Array, "..."] = parameter("friction")
+    radius: Float[Array, "..."] = parameter("radius")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio")
+    yield_displacement: Float[Array, "..."] = parameter(
+        "yield_displacement", default=5e-4
     )
-    A: Float[Array, "..."] = eqx.field(default=1.0, converter=as_float)
-    gamma: Float[Array, "..."] = eqx.field(default=0.9, converter=as_float)
-    beta: Float[Array, "..."] = eqx.field(default=0.1, converter=as_float)
+    A: Float[Array, "..."] = parameter("A", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", default=0.1)
     eta: float = eqx.field(default=2.0, static=True, converter=float)
 
-    def __check_init__(self):
-        nonnegative("friction", self.friction)
-        positive("radius", self.radius)
-        positive("mass_ratio", self.mass_ratio)
-        positive("yield_displacement", self.yield_displacement)
-        positive("A", self.A)
-        check("eta", self.eta, lambda v: v >= 1, "finite and >= 1")
-        check("gamma", self.gamma, lambda v: v == v, "finite")
-        check("beta", self.gamma + self.beta, lambda v: v > 0, "with gamma + beta > 0")
+    def constraints(self):
+        return [
+            at_least_zero("friction", self.friction),
+            greater_than_zero("radius", self.radius),
+            greater_than_zero("mass_ratio", self.mass_ratio),
+            greater_than_zero("yield_displacement", self.yield_displacement),
+            greater_than_zero("A", self.A),
+            Constraint("eta", self.eta, lambda v: v >= 1, "finite and >= 1"),
+            finite("gamma", self.gamma),
+            Constraint(
+                "beta", self.beta, lambda v: self.gamma + v > 0, "with gamma + beta > 0"
+            ),
+        ]
 
     @property
     def closed_form(self) -> bool:

@@ -4,6 +4,7 @@ import hashlib
 import json
 import os
 import time
+import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -19,14 +20,14 @@ from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion, MPPulse, Record
 from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum, LinearIsolator
-from ._misc import as_float, positive
+from ._misc import as_float, grid_axis, is_count, positive
 from ._simulate import (
     Outcome,
     SolverOptions,
     Status,
-    _check_types,
     _initial_carry,
     _response,
+    check_base_and_motion,
 )
 
 _FIELDS = (
@@ -183,7 +184,7 @@ def _map_chunk(
 def _fmt(x) -> str:
     x = np.asarray(x)
     if x.size == 1:
-        return f"{float(x):g}"
+        return f"{float(x.reshape(-1)[0]):g}"
     return f"{x.min():g}..{x.max():g} ({x.size} values)"
 
 
@@ -272,11 +273,53 @@ class BehaviorMap(eqx.Module):
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
-        """Read a map written by `save`."""
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["metadata"]))
-            arrays = {k: data[k] for k in ("slenderness", "size") + _FIELDS}
+        """Read a map written by `save`.
+
+        Raises `ValueError` naming the file if it is not such a map: unreadable,
+        truncated, missing arrays or metadata, arrays whose shapes disagree, or
+        outcome and status codes out of range.
+        """
+        names = ("slenderness", "size") + _FIELDS
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                missing = [k for k in ("metadata",) + names if k not in data.files]
+                if missing:
+                    raise ValueError(f"missing {', '.join(missing)}")
+                meta = json.loads(str(data["metadata"]))
+                arrays = {k: data[k] for k in names}
+            if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(
+                meta
+            ):
+                raise ValueError("its metadata lacks base, motion or seconds")
+            meta = {
+                k: meta[k]
+                for k in ("base", "motion", "seconds", "lane_efficiency")
+                if k in meta
+            }
+            _check_map_arrays(arrays)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+            raise ValueError(
+                f"{str(path)!r} is not a behavior map written by "
+                f"BehaviorMap.save: {err}"
+            ) from None
         return cls(**arrays, **meta)
+
+
+def _check_map_arrays(arrays: dict) -> None:
+    """`ValueError` unless a map's arrays agree: 1-D axes, every field of shape
+    (..., n_slenderness, n_size), known outcome and status codes."""
+    lam, r = arrays["slenderness"], arrays["size"]
+    if lam.ndim != 1 or r.ndim != 1:
+        raise ValueError("slenderness and size must be 1-D")
+    shape = arrays["outcome"].shape
+    if shape[-2:] != (lam.size, r.size):
+        raise ValueError(f"outcome has shape {shape}, not (..., {lam.size}, {r.size})")
+    for k in _FIELDS:
+        if arrays[k].shape != shape:
+            raise ValueError(f"{k} has shape {arrays[k].shape}, outcome {shape}")
+    for k, codes in (("outcome", Outcome), ("status", Status)):
+        if not np.isin(arrays[k], [int(c) for c in codes]).all():
+            raise ValueError(f"{k} holds codes other than {[int(c) for c in codes]}")
 
 
 def _leaf_digest(module) -> str:
@@ -321,6 +364,26 @@ def _signature(args) -> tuple:
     return treedef, tuple((x.shape, x.dtype, str(x.sharding)) for x in leaves)
 
 
+_CHUNK_ARRAYS = _FIELDS + ("index", "executed", "useful")
+
+
+def _read_chunk(path: Path, key_digest: str) -> dict | None:
+    """A stored chunk's arrays; None if it is unreadable (truncated or corrupt:
+    it is then computed again). `ValueError` if it belongs to another map."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            key = str(f["key"]) if "key" in f.files else None
+            arrays = {name: f[name] for name in _CHUNK_ARRAYS}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    if key != key_digest:
+        raise ValueError(
+            f"`store` {str(path.parent)!r} holds chunks of another map "
+            f"({path.name}); use a new folder"
+        )
+    return arrays
+
+
 def _wait_for(path: Path) -> None:
     """Wait for another process to write a chunk (while the store keeps growing)."""
     last, count = time.monotonic(), -1
@@ -334,6 +397,37 @@ def _wait_for(path: Path) -> None:
                 f"waiting for {path.name}: has another process stopped?"
             )
         time.sleep(0.05)
+
+
+def _chunk_size(chunk_size) -> int | None:
+    """`chunk_size` as an int >= 1, or None (`ValueError` otherwise)."""
+    if chunk_size is None:
+        return None
+    if not is_count(chunk_size) or chunk_size < 1:
+        raise ValueError(
+            f"`chunk_size` must be an integer >= 1 or None, got {chunk_size!r}"
+        )
+    return int(chunk_size)
+
+
+# Memory a map holds per cell on the host: inputs, indices, results and the
+# chunks' carries (measured: about 0.5 kB a cell at 2,440 to 100,000 cells).
+_BYTES_PER_CELL = 1024
+
+
+def _check_fits_in_memory(n: int) -> None:
+    """`ValueError` before anything runs when a map of n cells cannot fit in
+    half of this machine's memory."""
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    if n * _BYTES_PER_CELL > memory / 2:
+        raise ValueError(
+            f"a map of {n:,} cells needs about {n * _BYTES_PER_CELL / 2**30:.1f} GiB; "
+            f"at most {int(memory / 2 / _BYTES_PER_CELL):,} cells fit in this "
+            "machine's memory: split `slenderness` or `size` into smaller maps"
+        )
 
 
 def behavior_map(
@@ -377,13 +471,9 @@ def behavior_map(
     computes the chunks k with k % process_count == i and then reads the
     others' chunks as they appear; every process returns the whole map.
     """
-    _check_types(None, base, motion)
-    lam = np.atleast_1d(np.asarray(slenderness, dtype=float))
-    r = np.atleast_1d(np.asarray(size, dtype=float))
-    if lam.ndim != 1 or r.ndim != 1:
-        raise ValueError("`slenderness` and `size` must be 1-D arrays")
-    positive("slenderness", lam)
-    positive("size", r)
+    check_base_and_motion(base, motion)
+    lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
+    Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
     if isinstance(motion, Record) and motion.samples.ndim != 1:
         raise ValueError("a batch of records is not supported: map them one by one")
     base_shape = _batch_shape(base)
@@ -391,8 +481,7 @@ def behavior_map(
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
-    if chunk_size is not None and chunk_size < 1:
-        raise ValueError(f"`chunk_size` must be >= 1 or None, got {chunk_size}")
+    chunk_size = _chunk_size(chunk_size)
     opts = SolverOptions(
         rtol,
         atol,
@@ -404,6 +493,7 @@ def behavior_map(
 
     shape = base_shape + motion_shape + (lam.size, r.size)
     n = int(np.prod(shape))
+    _check_fits_in_memory(n)
     chunk = n if chunk_size is None else min(chunk_size, n)
     # Chunks are padded to a power of two (at most `chunk_size`) with cells that
     # are never analysed: maps of other sizes reuse a handful of compiles.
@@ -449,7 +539,11 @@ def behavior_map(
             "`store=DIR` on a file system all processes share"
         )
     if store is not None:
+        if not str(store).strip():
+            raise ValueError("`store` must name a folder, got an empty string")
         store = Path(store)
+        if store.exists() and not store.is_dir():
+            raise ValueError(f"`store` {str(store)!r} is a file, not a folder")
         store.mkdir(parents=True, exist_ok=True)
         key = json.dumps(
             dict(
@@ -476,6 +570,9 @@ def behavior_map(
         tmp = manifest.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(key)
         tmp.replace(manifest)  # atomic: other processes never read half of it
+        # Every chunk carries the key's digest too: a chunk of another map is
+        # refused even if the manifest is lost.
+        key_digest = hashlib.sha256(key.encode()).hexdigest()
 
     def chunk_args(k, index, inputs, shared, pilot):
         """The arguments of `_map_chunk` for chunk k, the cells `index` of
@@ -565,8 +662,9 @@ def behavior_map(
             if path is not None and k % processes != me:  # another process's
                 _wait_for(path)
             if path is not None and path.exists():  # from before an interruption
-                with np.load(path) as f:
-                    return {n: f[n] for n in _FIELDS + ("index", "executed", "useful")}
+                stored_chunk = _read_chunk(path, key_digest)
+                if stored_chunk is not None:
+                    return stored_chunk
             index = order[k::chunks]
             responses, _, executed, useful = compute(
                 k, index, cell_inputs, starts, False
@@ -575,7 +673,7 @@ def behavior_map(
             out |= {"index": index, "executed": executed, "useful": useful}
             if path is not None:
                 tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-                np.savez(tmp, **out)
+                np.savez(tmp, key=np.array(key_digest), **out)
                 tmp.replace(path)  # atomic: no half-written chunk
             return out
 

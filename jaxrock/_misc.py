@@ -1,8 +1,14 @@
-"""Small shared helpers: constants and construction-time checks."""
+"""Small shared helpers: constants, parameters and their allowed ranges."""
 
+import numbers
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, Bool
 
 GRAVITY = 9.81  # m/s^2
 
@@ -10,6 +16,96 @@ GRAVITY = 9.81  # m/s^2
 def as_float(x):
     """Converter for physical parameters: a float64 (when x64 is on) JAX array."""
     return jnp.asarray(x, dtype=float)
+
+
+def real_number(name: str, x):
+    """`x` as a float array if it is real-valued (ints and floats, scalar or
+    array, concrete or traced); else `ValueError` naming `name`. Strings,
+    None, booleans and complex numbers are refused, not coerced."""
+    kind = getattr(getattr(x, "dtype", None), "kind", None)
+    if kind is None and not isinstance(x, (str, bytes, bool)) and x is not None:
+        try:
+            kind = np.asarray(x).dtype.kind
+        except (TypeError, ValueError):
+            kind = None
+    if kind not in ("f", "i", "u"):
+        raise ValueError(
+            f"`{name}` must be a real number (float or int), got {x!r} "
+            f"({type(x).__name__})"
+        )
+    return as_float(x)
+
+
+def is_count(x) -> bool:
+    """A Python or NumPy integer (not a bool): a size, a count, a limit."""
+    return isinstance(x, numbers.Integral) and not isinstance(x, bool)
+
+
+def grid_axis(name: str, values) -> np.ndarray:
+    """A sweep's axis as a non-empty 1-D float array (`ValueError` naming it)."""
+    try:
+        x = np.atleast_1d(np.asarray(values))
+    except (TypeError, ValueError):
+        x = np.asarray([values], dtype=object)
+    if x.dtype.kind not in "fiu":
+        raise ValueError(f"`{name}` must be an array of real numbers, got {values!r}")
+    if x.ndim != 1 or x.size == 0:
+        raise ValueError(
+            f"`{name}` must be a non-empty 1-D array, got shape {np.shape(values)}"
+        )
+    return x.astype(float)
+
+
+def parameter(name: str, **kwargs):
+    """A physical parameter's field: a float array leaf, refused (naming it)
+    unless real-valued."""
+    return eqx.field(converter=lambda x: real_number(name, x), **kwargs)
+
+
+class Constraint(NamedTuple):
+    """A parameter's allowed range: `ok` is elementwise on NumPy or JAX arrays."""
+
+    name: str
+    value: Any
+    ok: Callable
+    allowed: str
+
+
+def finite(name, value) -> Constraint:
+    return Constraint(name, value, lambda v: v == v, "finite")
+
+
+def greater_than_zero(name, value) -> Constraint:
+    return Constraint(name, value, lambda v: v > 0, "finite and > 0")
+
+
+def at_least_zero(name, value) -> Constraint:
+    return Constraint(name, value, lambda v: v >= 0, "finite and >= 0")
+
+
+class AbstractChecked(eqx.Module):
+    """A module whose parameters have allowed ranges (`constraints`).
+
+    Concrete values are checked when the module is built (`ValueError` naming
+    the parameter and the range). Traced values (a module built inside `jit`,
+    `vmap` or `jacfwd`) cannot be: the engines then test `valid()` and report
+    `Status.INVALID_INPUT` with NaN results.
+    """
+
+    def constraints(self) -> list[Constraint]:
+        return []
+
+    def __check_init__(self):
+        for c in self.constraints():
+            check(c.name, c.value, c.ok, c.allowed)
+
+    def valid(self) -> Bool[Array, ""]:
+        """Every parameter finite and in its range (traceable)."""
+        out = jnp.asarray(True)
+        for c in self.constraints():
+            v = jnp.asarray(c.value)
+            out = out & jnp.all(jnp.isfinite(v) & c.ok(v))
+        return out
 
 
 def _concrete(x):
@@ -22,14 +118,20 @@ def _concrete(x):
 def check(name: str, x, ok, allowed: str) -> None:
     """Raise `ValueError` naming `name` and the allowed range unless `ok(x)` holds.
 
-    Skipped for traced values (inside `jit`/`vmap`), where the caller's concrete
-    inputs have been checked already.
+    Skipped for traced values (inside `jit`/`vmap`: `AbstractChecked.valid`
+    covers those). `ok` may read other parameters (of a broadcast shape).
     """
     value = _concrete(x)
     if value is None:
         return
-    if not np.all(np.isfinite(value)) or not np.all(ok(value)):
-        bad = value if value.ndim == 0 else value[~(np.isfinite(value) & ok(value))]
+    try:
+        good = np.asarray(ok(value))
+    except jax.errors.TracerArrayConversionError:  # `ok` reads a traced parameter
+        return
+    good = good & np.isfinite(value)
+    if not np.all(good):
+        value = np.broadcast_to(value, good.shape)
+        bad = value if value.ndim == 0 else value[~good]
         shown = np.ravel(bad)[:3].tolist()
         raise ValueError(
             f"`{name}` must be {allowed}, got {shown[0] if value.ndim == 0 else shown}"

@@ -39,7 +39,16 @@ from ._events import (
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum
-from ._misc import as_float, first_true, nonnegative, positive
+from ._misc import (
+    AbstractChecked,
+    as_float,
+    at_least_zero,
+    first_true,
+    greater_than_zero,
+    is_count,
+    parameter,
+    positive,
+)
 
 
 class Outcome(IntEnum):
@@ -56,7 +65,13 @@ class Status(IntEnum):
     SUCCESS = 0
     MAX_STEPS = 1  # a segment hit the solver's step limit (`max_steps`)
     MAX_SEGMENTS = 2  # the loop hit `max_segments` before the end of the window
-    SOLVER_FAILED = 3  # the step-size controller or the event root finder failed
+    # The step-size controller or the event root finder failed, or an event was
+    # missed (the block rotated past pi / 2 without overturning).
+    SOLVER_FAILED = 3
+    # A parameter out of its range inside compiled code (a module built from
+    # traced values, which the checks at construction cannot see); every float
+    # result is NaN.
+    INVALID_INPUT = 4
 
 
 class EventKind(IntEnum):
@@ -74,7 +89,7 @@ class EventKind(IntEnum):
     QUIET = 9  # ground still and too little energy left to uplift or move further
 
 
-class SolverOptions(eqx.Module):
+class SolverOptions(AbstractChecked):
     """Numerical options. Tolerances are traced (new values do not recompile);
     the solver, `step` being set or not, and the limits are static.
 
@@ -89,24 +104,31 @@ class SolverOptions(eqx.Module):
     rocking from theta = 0), or when e <= 0 (Eq. 2.13).
     """
 
-    rtol: Float[Array, ""] = eqx.field(default=1e-8, converter=as_float)
-    atol: Float[Array, ""] = eqx.field(default=1e-10, converter=as_float)
+    rtol: Float[Array, ""] = parameter("rtol", default=1e-8)
+    atol: Float[Array, ""] = parameter("atol", default=1e-10)
     max_steps: int = eqx.field(default=16384, static=True)
     max_segments: int = eqx.field(default=2000, static=True)
-    rest_tolerance: Float[Array, ""] = eqx.field(default=1e-6, converter=as_float)
+    rest_tolerance: Float[Array, ""] = parameter("rest_tolerance", default=1e-6)
     solver: diffrax.AbstractSolver = eqx.field(
         default_factory=diffrax.Tsit5, static=True
     )
     step: Float[Array, ""] | None = None
 
     def __check_init__(self):
-        positive("rtol", self.rtol)
-        positive("atol", self.atol)
-        nonnegative("rest_tolerance", self.rest_tolerance)
+        for name in ("max_steps", "max_segments"):
+            value = getattr(self, name)
+            if not is_count(value) or value < 1:
+                raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
+
+    def constraints(self):
+        out = [
+            greater_than_zero("rtol", self.rtol),
+            greater_than_zero("atol", self.atol),
+            at_least_zero("rest_tolerance", self.rest_tolerance),
+        ]
         if self.step is not None:
-            positive("step", self.step)
-        if self.max_steps < 1 or self.max_segments < 1:
-            raise ValueError("`max_steps` and `max_segments` must be >= 1")
+            out.append(greater_than_zero("step", self.step))
+        return out
 
 
 class History(eqx.Module):
@@ -151,6 +173,12 @@ class Response(eqx.Module):
 
     def summary(self) -> str:
         """One line: outcome, max rotation, max base displacement, impacts."""
+        if int(self.status) == Status.INVALID_INPUT:
+            return (
+                "INVALID_INPUT: a parameter of the block, base, motion or options "
+                "is out of its range (built from traced values, so not checked "
+                "when built); the results are NaN"
+            )
         outcome = Outcome(int(self.outcome)).name
         uplift = float(self.uplift_time)
         text = (
@@ -198,12 +226,17 @@ def _uplift_now(t, y, phase, block, base, motion):
     return uplift, jnp.where(a_abs < 0, 1.0, -1.0)
 
 
-def _initial_carry(block, base, motion) -> _Carry:
+def _initial_carry(block, base, motion, valid=True) -> _Carry:
+    """At rest at t = 0; rocking at once if the ground's acceleration uplifts
+    the block. With `valid` False (a parameter out of range) the analysis is
+    over before it starts, with status INVALID_INPUT."""
     zero = jnp.zeros((), dtype=block.size.dtype)
     t = zero
     y = (zero, zero, base.initial_state())
     phase = jnp.asarray(Phase.TRANSLATION)
     uplift, sign = _uplift_now(t, y, phase, block, base, motion)
+    valid = valid & block.valid() & base.valid() & motion.valid()
+    uplift = uplift & valid
     return _Carry(
         t=t,
         y=y,
@@ -215,11 +248,11 @@ def _initial_carry(block, base, motion) -> _Carry:
         uplift_time=jnp.where(uplift, t, jnp.nan),
         rocked=uplift,
         overturned=jnp.asarray(False),
-        status=jnp.asarray(Status.SUCCESS),
+        status=jnp.where(valid, Status.SUCCESS, Status.INVALID_INPUT),
         segments=jnp.asarray(0),
         steps=jnp.asarray(0),
         segment_steps=jnp.asarray(0),
-        done=jnp.asarray(False),
+        done=~valid,
         kind=jnp.asarray(EventKind.END),
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
         theta_ref=zero,
@@ -373,13 +406,19 @@ def _transition(
     uplift = (phase == Phase.TRANSLATION) & (hit_a | hit_b)
     overturn = (phase == Phase.RISING) & hit_a
     apex = (phase == Phase.RISING) & hit_b
+    # An apex at or below theta = 0 (a rebound too small to lift the block, as
+    # at the end of a Zeno sequence of impacts with `rest_tolerance` 0): the
+    # block rests on its base. (Falling from there, the impact condition
+    # s theta would start <= 0 and never fire.)
+    grounded = apex & (sign * theta <= 0)
+    apex = apex & ~grounded
     hit_ground = (phase == Phase.FALLING) & hit_a
     reversal = (phase == Phase.FALLING) & hit_b
     # Guard (a phase begun on the wrong side of a near double root): rising
     # after all, falling after all, or, right after uplift, never really lifted.
     guard_up = (phase == Phase.FALLING) & hit_guard
     guard_down = (phase == Phase.RISING) & hit_guard & (c.theta_ref > 0)
-    settled = (phase == Phase.RISING) & hit_guard & (c.theta_ref <= 0)
+    settled = ((phase == Phase.RISING) & hit_guard & (c.theta_ref <= 0)) | grounded
 
     # Impact map with the rest rule.
     e, _ = restitution(block, base)
@@ -531,17 +570,23 @@ def _transition(
 def _response(c: _Carry, block, opts) -> Response:
     status = jnp.where(c.done, c.status, Status.MAX_SEGMENTS)
     status = jnp.where(c.status != Status.SUCCESS, c.status, status)
+    # |theta| beyond pi / 2 without the overturn event: an event was missed,
+    # and nothing after it can be trusted.
+    lost = ~c.overturned & (c.max_theta > 0.5 * jnp.pi)
+    status = jnp.where(lost & (status == Status.SUCCESS), Status.SOLVER_FAILED, status)
     outcome = jnp.where(
         c.overturned,
         Outcome.OVERTURNED,
         jnp.where(c.rocked, Outcome.ROCKING, Outcome.NO_ROCKING),
     )
+    invalid = status == Status.INVALID_INPUT
+    nan = jnp.asarray(jnp.nan, dtype=c.max_theta.dtype)
     return Response(
         outcome=outcome,
-        max_rotation=c.max_theta / block.alpha,
-        max_base_displacement=c.max_u,
+        max_rotation=jnp.where(invalid, nan, c.max_theta / block.alpha),
+        max_base_displacement=jnp.where(invalid, nan, c.max_u),
         impacts=c.impacts,
-        uplift_time=c.uplift_time,
+        uplift_time=jnp.where(invalid, nan, c.uplift_time),
         status=status,
         steps=c.steps,
         segments=c.segments,
@@ -558,7 +603,8 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
         sol = _solve_segment(c, block, base, motion, duration, opts)
         return _transition(c, sol, block, base, motion, duration, opts)
 
-    carry = jax.lax.while_loop(cond, body, _initial_carry(block, base, motion))
+    valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
+    carry = jax.lax.while_loop(cond, body, _initial_carry(block, base, motion, valid))
     return _response(carry, block, opts)
 
 
@@ -566,13 +612,30 @@ _run_jit = eqx.filter_jit(run)
 
 
 @eqx.filter_jit
-def _segment_dense(c, block, base, motion, duration, opts, grid):
+def _segment_dense(c, block, base, motion, duration, opts):
+    """One segment with its dense output, and the carry after its transition."""
     sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
-    new = _transition(c, sol, block, base, motion, duration, opts)
-    inside = (grid > c.t) & (grid < new.t)
-    ts = jnp.clip(grid, c.t, new.t)
-    ys = jax.vmap(sol.evaluate)(ts)
-    return new, inside, ys
+    return _transition(c, sol, block, base, motion, duration, opts), sol
+
+
+# Times evaluated per call on a segment's dense output (one compile for all).
+_WINDOW = 256
+
+
+@eqx.filter_jit
+def _evaluate(sol, ts):
+    return jax.vmap(sol.evaluate)(ts)
+
+
+def _dense_states(sol, ts: np.ndarray):
+    """The states at times `ts` on a segment's dense output, `_WINDOW` at a time."""
+    parts = []
+    for i in range(0, ts.size, _WINDOW):
+        window = ts[i : i + _WINDOW]
+        padded = np.pad(window, (0, _WINDOW - window.size), mode="edge")
+        ys = _evaluate(sol, padded)
+        parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[: window.size], ys))
+    return jax.tree_util.tree_map(lambda *x: np.concatenate(x), *parts)
 
 
 def _rows(t, y, regime) -> np.ndarray:
@@ -610,13 +673,15 @@ def _rowwise(f, module, x: np.ndarray) -> np.ndarray:
     return np.asarray(f(module, np.pad(x, pad, mode="edge")))[:n]
 
 
-def _history(block, base, motion, duration, opts, samples=2001):
-    """The same segments in a Python loop, sampled on a grid and at every event.
+def _history(block, base, motion, duration, opts, step):
+    """The same segments in a Python loop, sampled every `step` (s) and at
+    every event.
 
     Returns the final carry and a `History`; at an event both the state just
     before and just after the transition are recorded (same time).
     """
-    grid = jnp.linspace(0.0, duration, samples)
+    duration = float(duration)
+    grid = np.linspace(0.0, duration, int(round(duration / step)) + 1)
     c = _initial_carry(block, base, motion)
 
     def regime(carry):
@@ -625,15 +690,15 @@ def _history(block, base, motion, duration, opts, samples=2001):
     rows = [_rows(c.t, c.y, regime(c))]
     times, kinds = ([0.0], ["uplift"]) if bool(c.rocked) else ([], [])
     while not bool(c.done) and int(c.segments) < opts.max_segments:
-        new, inside, ys = _segment_dense(c, block, base, motion, duration, opts, grid)
-        inside = np.array(inside)
-        inside[-1] = True  # grid[-1] is clipped to new.t: the state before the event
-        take = jax.tree_util.tree_map(lambda x: np.asarray(x)[inside], ys)
-        ts = np.where(np.arange(samples) == samples - 1, float(new.t), grid)[inside]
-        rows += [_rows(ts, take, regime(c)), _rows(new.t, new.y, regime(new))]
+        new, sol = _segment_dense(c, block, base, motion, duration, opts)
+        t0, t1 = float(c.t), float(new.t)
+        # The grid inside the segment, then the state just before the event.
+        ts = np.append(grid[(grid > t0) & (grid < t1)], t1)
+        ys = _dense_states(sol, ts)
+        rows += [_rows(ts, ys, regime(c)), _rows(new.t, new.y, regime(new))]
         kind = EventKind(int(new.kind))
         if kind != EventKind.END:
-            times.append(float(new.t))
+            times.append(t1)
             kinds.append(kind.name.lower())
         c = new
     h = np.concatenate(rows)
@@ -664,6 +729,7 @@ def simulate(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     history: bool = False,
+    history_step: float | None = None,
     max_steps: int = 16384,
     max_segments: int = 2000,
     rest_tolerance: float = 1e-6,
@@ -671,15 +737,39 @@ def simulate(
 ) -> Response:
     """Simulate one block on a base under a ground motion (SI units, float64).
 
-    `duration` (s) defaults to the end of the excitation plus 5 s. `rtol`, `atol`:
-    integrator tolerances; events are located to about 1e-12 s on the dense
-    output. `history=True` adds the time histories (a Python loop of compiled
-    segments). Physical parameters and `duration` are traced: new values do not
-    recompile. Works under `jax.jit`, `jax.vmap` and `jax.jacfwd` (with
-    `history=False`); check `response.status` (or `response.ok`). `solver`: a
-    Diffrax solver (default `diffrax.Tsit5()`); the rest: see `SolverOptions`.
+    Works under `jax.jit`, `jax.vmap` and `jax.jacfwd` (with `history=False`);
+    physical parameters and `duration` are traced, so new values do not
+    recompile.
+
+    Args:
+        block: the rigid block.
+        base: `FixedBase()`, `LinearIsolator(...)` or `FrictionPendulum(...)`.
+        motion: an `MPPulse`, a `SinePulse` or a `Record`.
+        duration: length of the analysis (s); default: the end of the
+            excitation plus 5 s.
+        rtol, atol: the integrator's tolerances. Events are located to about
+            1e-12 s on the dense output whatever they are.
+        history: also return the time histories (`Response.history`), computed
+            by a Python loop of compiled segments.
+        history_step: spacing of the history's samples (s); every event is
+            recorded as well. Default: duration / 2000, at most 0.01 s.
+        max_steps: the solver's step limit in one segment.
+        max_segments: the limit on segments (events) of the analysis.
+        rest_tolerance: the rest rule (`SolverOptions`).
+        solver: a Diffrax solver; default `diffrax.Tsit5()`.
+
+    Returns:
+        A `Response`. Check `response.status` (or `response.ok`): anything but
+        `Status.SUCCESS` means the numbers are not final.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
+        ...                 jr.near_fault_pulse("Northridge JFA/SN"))
+        >>> r.ok
+        Array(True, dtype=bool)
     """
-    _check_types(block, base, motion)
+    _check_single(block, base, motion)
     if duration is None:
         duration = motion.end_time + 5.0
     positive("duration", duration)
@@ -689,20 +779,43 @@ def simulate(
     )
     if not history:
         return _run_jit(block, base, motion, duration, opts)
-    c, hist = _history(block, base, motion, duration, opts)
+    if history_step is None:
+        history_step = min(float(duration) / 2000.0, 0.01)
+    positive("history_step", history_step)
+    c, hist = _history(block, base, motion, duration, opts, history_step)
     response = _response(c, block, opts)
     return eqx.tree_at(lambda r: r.history, response, hist, is_leaf=lambda x: x is None)
 
 
-def _check_types(block, base, motion):
-    if block is not None and not isinstance(block, Block):
-        raise TypeError(f"`block` must be a jaxrock.Block, got {type(block).__name__}")
+def check_base_and_motion(base, motion):
+    """`ValueError` unless `base` is an isolator and `motion` a ground motion."""
     if not isinstance(base, AbstractIsolator):
-        raise TypeError(
+        raise ValueError(
             "`base` must be FixedBase, LinearIsolator or FrictionPendulum, got "
             f"{type(base).__name__}"
         )
     if not isinstance(motion, AbstractGroundMotion):
-        raise TypeError(
-            f"`motion` must be an MPPulse or a Record, got {type(motion).__name__}"
+        raise ValueError(
+            "`motion` must be an MPPulse, SinePulse or Record, got "
+            f"{type(motion).__name__}"
         )
+
+
+def _check_single(block, base, motion):
+    """`simulate`'s inputs: one block, one base, one motion (batches of
+    concrete values go to `behavior_map`, or `jax.vmap` over `simulate`)."""
+    if not isinstance(block, Block):
+        raise ValueError(f"`block` must be a jaxrock.Block, got {type(block).__name__}")
+    check_base_and_motion(base, motion)
+    for name, module in (("block", block), ("base", base), ("motion", motion)):
+        shapes = {
+            np.shape(x)
+            for x in jax.tree_util.tree_leaves(module)
+            if not (name == "motion" and x is getattr(module, "samples", None))
+        }
+        if shapes - {()}:
+            raise ValueError(
+                f"`{name}` must hold one value per parameter in `simulate`, got "
+                f"shapes {sorted(shapes)}: use `behavior_map` for batches, or "
+                "`jax.vmap(simulate)`"
+            )

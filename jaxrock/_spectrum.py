@@ -8,7 +8,7 @@ from ._block import Block
 from ._ground import SinePulse
 from ._isolators import AbstractIsolator
 from ._maps import behavior_map
-from ._misc import positive
+from ._misc import grid_axis, positive
 from ._simulate import Outcome, Status
 
 
@@ -44,8 +44,8 @@ def overturning_spectrum(
     Every (frequency, amplitude) pair is one exact analysis; they run as one
     behavior map with a motion axis (`map_options` go to `behavior_map`).
     """
-    fr = np.atleast_1d(np.asarray(frequency_ratio, dtype=float))
-    ar = np.atleast_1d(np.asarray(amplitude_ratio, dtype=float))
+    fr = grid_axis("frequency_ratio", frequency_ratio)
+    ar = grid_axis("amplitude_ratio", amplitude_ratio)
     positive("frequency_ratio", fr)
     positive("amplitude_ratio", ar)
     p = float(block.p)
@@ -101,7 +101,7 @@ def linearized_overturning_amplitude(frequency_ratio) -> np.ndarray:
     overturning region approaches it as alpha -> 0 (tested: within 0.5% at
     slenderness 20).
     """
-    ratios = np.atleast_1d(np.asarray(frequency_ratio, dtype=float))
+    ratios = grid_axis("frequency_ratio", frequency_ratio)
     positive("frequency_ratio", ratios)
     grid = np.geomspace(1.0 + 1e-9, 1e4, 200)
     out = np.full(ratios.shape, np.nan)

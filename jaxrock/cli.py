@@ -1,8 +1,61 @@
-"""Command line: `jaxrock map` (behavior maps) and `jaxrock simulate` (one block)."""
+"""The `jaxrock` command: behavior maps, fragility curves, overturning spectra,
+one block's response, and the near-fault pulses they can take.
+
+jaxrock's modules are imported inside the functions that compute: parsing and
+checking the arguments needs none of them, so that argument errors come before
+any compilation.
+"""
 
 import argparse
+import math
 import os
 import sys
+import textwrap
+
+# matplotlib picks the format from the suffix: these three are checked here so
+# that a typo fails before the computation, not at the end of it.
+OUT_SUFFIXES = (".png", ".pdf", ".svg")
+# Per axis: a million values already make a map of a trillion cells if both
+# axes take them; anything beyond is a typo, not a grid.
+MAX_POINTS = 1_000_000
+_DEBUG = "JAXROCK_DEBUG"
+
+
+class _Formatter(
+    argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter
+):
+    """Shows real defaults, not the `None` or `False` of options without one."""
+
+    def _get_help_string(self, action):
+        if action.default is None or action.default is False:
+            return action.help
+        return super()._get_help_string(action)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Argument errors in one line, like every other error of the command."""
+
+    def error(self, message):
+        print(
+            f"jaxrock: error: {_one_line(message)} (`{self.prog} -h` lists the "
+            "options)",
+            file=sys.stderr,
+        )
+        sys.exit(2)
+
+
+def _one_line(text) -> str:
+    """The first line of a message, marked when more followed."""
+    lines = [line.strip() for line in str(text).splitlines() if line.strip()]
+    if not lines:
+        return ""
+    return lines[0] + (" [...]" if len(lines) > 1 else "")
+
+
+def _wrap(text: str) -> str:
+    return "\n\n".join(
+        textwrap.fill(p, 78) for p in textwrap.dedent(text).split("\n\n")
+    )
 
 
 def _range(text: str):
@@ -16,106 +69,303 @@ def _range(text: str):
         raise argparse.ArgumentTypeError(
             f"expected START:STOP:N (e.g. 1.0:7.0:61), got {text!r}"
         ) from None
+    # linspace would warn about inf and nan before any check could report them.
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        raise argparse.ArgumentTypeError(
+            f"START and STOP must be finite numbers, got {text!r}"
+        )
     if n < 1 or not (start > 0 and stop >= start):
         raise argparse.ArgumentTypeError(
             f"need 0 < START <= STOP and N >= 1, got {text!r}"
         )
+    if n > MAX_POINTS:
+        raise argparse.ArgumentTypeError(
+            f"N must be at most {MAX_POINTS:,} per axis, got {n:,} in {text!r}"
+        )
     return np.linspace(start, stop, n)
 
 
-def _parser():
-    p = argparse.ArgumentParser(prog="jaxrock", description=__doc__)
-    sub = p.add_subparsers(dest="command", required=True)
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
 
-    def base_options(q):
+
+def _version() -> str:
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version("jaxrock")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+class _Version(argparse.Action):
+    """--version: the metadata is read only when asked for."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(
+            option_strings,
+            dest,
+            nargs=0,
+            default=argparse.SUPPRESS,
+            help="print the version and exit",
+        )
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"jaxrock {_version()}")
+        parser.exit()
+
+
+_EXAMPLES = """\
+examples:
+  jaxrock map --pulse "Tabas TAB/SP" --base fps
+  jaxrock map --record FILE.AT2 --slenderness 2:6:41 --size 0.2:3:15
+  jaxrock simulate --slenderness 4 --size 1 --base linear
+  jaxrock fragility --pulse "Northridge JFA/SN" --base linear --scales 0.1:2:40
+  jaxrock pulses
+"""
+
+
+def _parser():
+    p = _Parser(
+        prog="jaxrock",
+        description=_wrap(
+            """\
+            Rigid blocks rocking on seismically isolated bases under near-fault
+            ground motion. Units are SI: m, s, m/s, m/s^2."""
+        ),
+        epilog=_EXAMPLES,
+        formatter_class=_Formatter,
+    )
+    p.add_argument("--version", action=_Version)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name, help, description):
+        return sub.add_parser(
+            name,
+            help=help,
+            description=_wrap(description),
+            formatter_class=_Formatter,
+        )
+
+    def base_options(q, out, compare):
         q.add_argument(
             "--base",
             choices=["fixed", "linear", "fps"],
             default="linear",
-            help="base to analyse (default linear; `map` and `spectrum` also draw "
-            "the fixed base beside it, `map` unless --no-compare)",
+            help="base to analyse: fixed (no isolation), linear (linear isolator: "
+            "--period, --damping, --mass-ratio) or fps (friction pendulum: "
+            f"--friction, --radius, --mass-ratio){compare}",
         )
-        q.add_argument("--period", type=float, default=2.0, help="T_s (s)")
-        q.add_argument("--damping", type=float, default=0.35, help="xi")
-        q.add_argument("--friction", type=float, default=0.11, help="mu (fps)")
-        q.add_argument("--radius", type=float, default=2.24, help="R (m) (fps)")
-        q.add_argument("--mass-ratio", type=float, default=0.5, help="m / m_b")
-        q.add_argument("--out", default=None, help="output PNG")
+        q.add_argument(
+            "--period",
+            type=float,
+            default=2.0,
+            help="T_s, isolation period (s), linear",
+        )
+        q.add_argument(
+            "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
+        )
+        q.add_argument(
+            "--friction", type=float, default=0.11, help="mu, friction coefficient, fps"
+        )
+        q.add_argument(
+            "--radius",
+            type=float,
+            default=2.24,
+            help="R, radius of curvature (m), fps",
+        )
+        q.add_argument(
+            "--mass-ratio",
+            type=float,
+            default=0.5,
+            help="m / m_b, block mass over base mass, linear and fps",
+        )
+        q.add_argument(
+            "--out",
+            default=out,
+            help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png)",
+        )
 
     def one_block(q):
-        q.add_argument("--slenderness", type=float, default=4.0, help="lambda = h/b")
-        q.add_argument("--size", type=float, default=1.0, help="r (m)")
+        q.add_argument(
+            "--slenderness", type=float, default=4.0, help="lambda = h/b of the block"
+        )
+        q.add_argument(
+            "--size", type=float, default=1.0, help="r, the block's half-diagonal (m)"
+        )
 
-    def common(q):
-        base_options(q)
+    def motion_options(q):
         g = q.add_mutually_exclusive_group()
         g.add_argument(
             "--pulse",
             default="San Fernando PCD/SN",
-            help="a Table 3.1 pulse name (default: %(default)s)",
+            help="a near-fault pulse of Table 3.1 by name (see `jaxrock pulses`)",
         )
-        g.add_argument("--record", help="a PEER NGA .AT2 file instead of a pulse")
+        g.add_argument(
+            "--record",
+            help="a PEER NGA .AT2 file (acceleration in g) instead of a pulse",
+        )
         q.add_argument(
             "--scale",
             type=float,
             default=1.0,
-            help="amplitude factor of the motion (default 1)",
+            help="factor on the amplitude of the motion",
         )
 
-    m = sub.add_parser("map", help="behavior map over slenderness and size")
-    common(m)
+    m = command(
+        "map",
+        "behavior map over slenderness and size",
+        """\
+        Behavior map: every block of a grid of slenderness and size under one
+        ground motion, classified as no rocking, rocking or overturned. Writes
+        the figure (--out) and, beside it, one STEM_BASE.npz per base (e.g.
+        behavior_map_LinearIsolator.npz).""",
+    )
+    base_options(
+        m,
+        "behavior_map.png",
+        "; the fixed base is mapped beside it unless --no-compare",
+    )
+    motion_options(m)
     m.add_argument(
         "--slenderness",
         type=_range,
         default="1.0:7.0:61",
-        help="START:STOP:N (default 1.0:7.0:61)",
+        help="lambda = h/b, START:STOP:N",
     )
     m.add_argument(
         "--size",
         type=_range,
         default="0.1:4.0:40",
-        help="START:STOP:N in m (default 0.1:4.0:40)",
+        help="r, the half-diagonal, START:STOP:N in m",
     )
     m.add_argument(
         "--no-compare",
         action="store_true",
         help="only the chosen base, not the fixed base beside it",
     )
-    m.add_argument("--chunk-size", type=int, default=610)
+    m.add_argument(
+        "--chunk-size",
+        type=_positive_int,
+        default=610,
+        help="blocks per compiled batch: smaller needs less memory, and with "
+        "--store loses less work to an interruption",
+    )
     m.add_argument(
         "--store",
         default=None,
         help="folder for finished chunks: an interrupted map resumes",
     )
-    f = sub.add_parser("fragility", help="fragility curves over a scaled pulse")
-    common(f)
+
+    f = command(
+        "fragility",
+        "fragility curves over a scaled pulse",
+        """\
+        Fragility curves of one block: the pulse scaled by every factor of
+        --scales, and lognormal fits (maximum likelihood) of the probability of
+        rocking and of overturning against the intensity measure.""",
+    )
+    base_options(f, "fragility.png", "")
+    motion_options(f)
     one_block(f)
     f.add_argument(
         "--scales",
         type=_range,
         default="0.1:2.0:40",
-        help="amplitude scales START:STOP:N (default 0.1:2.0:40)",
+        help="amplitude factors of the pulse, START:STOP:N",
     )
-    f.add_argument("--measure", choices=["pga", "pgv", "pga_ratio"], default="pga")
-    o = sub.add_parser("spectrum", help="overturning spectrum under one-sine pulses")
-    base_options(o)
+    f.add_argument(
+        "--measure",
+        choices=["pga", "pgv", "pga_ratio"],
+        default="pga",
+        help="intensity measure: peak ground acceleration (m/s^2), peak ground "
+        "velocity (m/s), or pga_ratio = PGA / (g tan alpha)",
+    )
+
+    o = command(
+        "spectrum",
+        "overturning spectrum under one-sine pulses",
+        """\
+        Overturning spectrum of one block: one-sine acceleration pulses over a
+        grid of frequency ratio omega_p / p and amplitude ratio
+        a_p / (g tan alpha), each an exact analysis; prints the lowest
+        overturning amplitude ratio at each frequency ratio.""",
+    )
+    base_options(o, "spectrum.png", "; the fixed base is drawn beside it")
     one_block(o)
     o.add_argument(
         "--frequency-ratio",
         type=_range,
         default="0.5:8:16",
-        help="omega_p / p, START:STOP:N (default 0.5:8:16)",
+        help="omega_p / p, START:STOP:N",
     )
     o.add_argument(
         "--amplitude-ratio",
         type=_range,
         default="1:8:36",
-        help="a_p / (g tan alpha), START:STOP:N (default 1:8:36)",
+        help="a_p / (g tan alpha), START:STOP:N",
     )
-    s = sub.add_parser("simulate", help="one block: a one-line result and a plot")
-    common(s)
+
+    s = command(
+        "simulate",
+        "one block: a one-line result and a plot",
+        """\
+        One block under one ground motion: prints the outcome, max |theta| /
+        alpha, max |u| (m), the impacts and the uplift time (s), and plots the
+        ground acceleration, the base displacement and the rotation.""",
+    )
+    base_options(s, "response.png", "")
+    motion_options(s)
     one_block(s)
+
+    command(
+        "pulses",
+        "list the near-fault pulses for --pulse",
+        """\
+        The near-fault pulses of Table 3.1 (Mavroeidis & Papageorgiou fits to
+        recorded motions), one per line: the name for --pulse, then A (m/s),
+        f_p (Hz), gamma and nu (degrees).""",
+    )
     return p
+
+
+def _check_out(out: str) -> str:
+    """The file --out will write; errors now rather than after the computation."""
+    if not out:
+        raise ValueError("--out: empty file name")
+    if os.path.isdir(out):
+        raise ValueError(f"--out: {out} is a folder, not a file")
+    suffix = os.path.splitext(out)[1]
+    if not suffix:
+        out += ".png"
+        if os.path.isdir(out):
+            raise ValueError(f"--out: {out} is a folder, not a file")
+    elif suffix.lower() not in OUT_SUFFIXES:
+        raise ValueError(
+            f"--out: cannot write {suffix!r} files; use one of "
+            + ", ".join(OUT_SUFFIXES)
+        )
+    folder = os.path.dirname(out) or "."
+    if not os.path.exists(folder):
+        raise ValueError(f"--out: folder {folder} does not exist")
+    if not os.path.isdir(folder):
+        raise ValueError(f"--out: {folder} is not a folder")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"--out: cannot write in folder {folder}")
+    return out
+
+
+def _check_record(path: str) -> None:
+    if os.path.isdir(path):
+        raise ValueError(f"--record: {path} is a folder, not a file")
+    if not os.path.exists(path):
+        raise ValueError(f"--record: no such file: {path}")
 
 
 def _base(a):
@@ -132,8 +382,6 @@ def _inputs(a):
     import jaxrock as jr
 
     if a.record:
-        if not os.path.isfile(a.record):
-            raise ValueError(f"no such file: {a.record}")
         rec = jr.io.read_at2(a.record)
         motion = jr.Record(rec.samples * a.scale, rec.dt)
         name = os.path.basename(a.record)
@@ -143,85 +391,130 @@ def _inputs(a):
     return motion, _base(a), name
 
 
+def _pulses() -> int:
+    import jaxrock as jr
+
+    width = max(len(name) for name in jr.NEAR_FAULT_PULSES)
+    for name in jr.NEAR_FAULT_PULSES:
+        p = jr.near_fault_pulse(name)
+        print(
+            f"{name:<{width}}  A = {float(p.amplitude):<5g} m/s  "
+            f"f_p = {float(p.frequency):<5g} Hz  gamma = {float(p.gamma):<5g}  "
+            f"nu = {float(p.phase):g} deg"
+        )
+    return 0
+
+
+def _run(a) -> int:
+    if a.command == "pulses":
+        return _pulses()
+    # Everything that can be told from the arguments alone fails here, before
+    # JAX is imported and long before anything compiles.
+    out = _check_out(a.out)
+    if getattr(a, "record", None):
+        if a.command == "fragility":
+            raise ValueError("fragility takes a pulse (--pulse), not a record")
+        _check_record(a.record)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import jaxrock as jr
+    from jaxrock import plot
+
+    if a.command == "spectrum":
+        block = jr.Block(a.slenderness, a.size)
+        bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
+        spectra = [
+            jr.overturning_spectrum(
+                block, b, a.frequency_ratio, a.amplitude_ratio, progress=False
+            )
+            for b in bases
+        ]
+        for s_ in spectra:
+            print(
+                f"{s_.base}: minimum a_p / (g tan alpha) = "
+                + " ".join(f"{m:.3g}" for m in s_.minimum)
+            )
+        plot.overturning_spectrum(spectra).figure.savefig(out, dpi=120)
+        print(f"wrote {out}")
+        return 0
+    motion, base, name = _inputs(a)
+    if a.command == "simulate":
+        r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
+        print(r.summary())
+        plot.response(r).savefig(out, dpi=120)
+        print(f"wrote {out}")
+        return 0
+    if a.command == "fragility":
+        p = jr.near_fault_pulse(a.pulse, scale=a.scale)
+        motions = jr.MPPulse(a.scales * p.amplitude, p.frequency, p.gamma, p.phase)
+        frag = jr.fragility(
+            a.slenderness, a.size, base, motions, measure=a.measure, progress=False
+        )
+        print(
+            f"{a.scales.size} analyses: {int(frag.rocked.sum())} rocked, "
+            f"{int(frag.overturned.sum())} overturned; median {a.measure} "
+            f"to overturn {frag.median_overturning:.4g} "
+            f"(beta {frag.beta_overturning:.3g})"
+        )
+        ax = plot.fragility(
+            frag,
+            title=f"{name}, lambda = {a.slenderness:g}, "
+            f"r = {a.size:g} m, {type(base).__name__}",
+        )
+        ax.figure.savefig(out, dpi=120)
+        print(f"wrote {out}")
+        return 0
+    bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
+    maps = []
+    for b in bases:
+        store = None if a.store is None else os.path.join(a.store, type(b).__name__)
+        bm = jr.behavior_map(
+            a.slenderness, a.size, b, motion, chunk_size=a.chunk_size, store=store
+        )
+        print(bm.summary().replace(bm.motion, name))
+        maps.append(bm)
+    stem = os.path.splitext(out)[0]
+    for b, bm in zip(bases, maps):
+        bm.save(f"{stem}_{type(b).__name__}.npz")
+    titles = [f"{name}\n{bm.base}" for bm in maps]
+    plot.compare_maps(maps, titles).savefig(out, dpi=120)
+    print(f"wrote {out} and {stem}_*.npz")
+    return 0
+
+
 def main(argv=None) -> int:
+    """The console script: the exit status is returned, argument errors exit 2."""
     a = _parser().parse_args(argv)
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import jaxrock as jr
-        from jaxrock import plot
-
-        if a.command == "spectrum":
-            block = jr.Block(a.slenderness, a.size)
-            bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
-            spectra = [
-                jr.overturning_spectrum(
-                    block, b, a.frequency_ratio, a.amplitude_ratio, progress=False
-                )
-                for b in bases
-            ]
-            for s_ in spectra:
-                print(
-                    f"{s_.base}: minimum a_p / (g tan alpha) = "
-                    + " ".join(f"{m:.3g}" for m in s_.minimum)
-                )
-            out = a.out or "spectrum.png"
-            plot.overturning_spectrum(spectra).figure.savefig(out, dpi=120)
-            print(f"wrote {out}")
-            return 0
-        motion, base, name = _inputs(a)
-        if a.command == "simulate":
-            r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
-            print(r.summary())
-            out = a.out or "response.png"
-            plot.response(r).savefig(out, dpi=120)
-            print(f"wrote {out}")
-            return 0
-        if a.command == "fragility":
-            if a.record:
-                raise ValueError("fragility takes a pulse (--pulse), not a record")
-            p = jr.near_fault_pulse(a.pulse, scale=a.scale)
-            motions = jr.MPPulse(a.scales * p.amplitude, p.frequency, p.gamma, p.phase)
-            frag = jr.fragility(
-                a.slenderness, a.size, base, motions, measure=a.measure, progress=False
-            )
-            print(
-                f"{a.scales.size} analyses: {int(frag.rocked.sum())} rocked, "
-                f"{int(frag.overturned.sum())} overturned; median {a.measure} "
-                f"to overturn {frag.median_overturning:.4g} "
-                f"(beta {frag.beta_overturning:.3g})"
-            )
-            out = a.out or "fragility.png"
-            ax = plot.fragility(
-                frag,
-                title=f"{name}, lambda = {a.slenderness:g}, "
-                f"r = {a.size:g} m, {type(base).__name__}",
-            )
-            ax.figure.savefig(out, dpi=120)
-            print(f"wrote {out}")
-            return 0
-        bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
-        maps = []
-        for b in bases:
-            store = None if a.store is None else os.path.join(a.store, type(b).__name__)
-            bm = jr.behavior_map(
-                a.slenderness, a.size, b, motion, chunk_size=a.chunk_size, store=store
-            )
-            print(bm.summary().replace(bm.motion, name))
-            maps.append(bm)
-        out = a.out or "behavior_map.png"
-        stem = os.path.splitext(out)[0]
-        for b, bm in zip(bases, maps):
-            kind = type(b).__name__
-            bm.save(f"{stem}_{kind}.npz")
-        titles = [f"{name}\n{bm.base}" for bm in maps]
-        plot.compare_maps(maps, titles).savefig(out, dpi=120)
-        print(f"wrote {out} and {stem}_*.npz")
-        return 0
+        return _run(a)
+    except KeyboardInterrupt:
+        print("jaxrock: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # A reader that stopped early (`jaxrock pulses | head`) is no error;
+        # stdout goes to devnull so that the exit's flush does not raise again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141  # 128 + SIGPIPE, what a shell reports for such a writer
     except (ValueError, TypeError, OSError) as err:
-        print(f"jaxrock: error: {err}", file=sys.stderr)
+        print(f"jaxrock: error: {_one_line(err)}", file=sys.stderr)
         return 2
+    except Exception as err:
+        if os.environ.get(_DEBUG) == "1":
+            raise
+        message = _one_line(err)
+        print(
+            f"jaxrock: error: internal error: {type(err).__name__}"
+            + (f": {message}" if message else "")
+            + f" (set {_DEBUG}=1 for the traceback)",
+            file=sys.stderr,
+        )
+        return 1
 
 
 if __name__ == "__main__":

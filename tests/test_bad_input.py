@@ -1,0 +1,283 @@
+"""Bad input: a clear `ValueError` naming the parameter before anything runs,
+or, inside compiled code, a status of its own and NaN results; never a
+plausible number."""
+
+import json
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock import _simulate
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+
+
+# -- wrong results reported as normal -------------------------------------------
+
+
+def test_zeno_sequence_without_rest_rule_never_rotates_past_overturning():
+    """With `rest_tolerance=0` the impacts of this block accumulate (Zeno) and an
+    apex is located at theta = 0 to rounding, on the wrong side; falling from
+    there, the impact condition started <= 0 and never fired, and the block
+    rotated to 17.6 alpha (past pi / 2) reported as ROCKING / SUCCESS."""
+    block, pulse = (
+        jr.Block(3.0, 3.0),
+        jr.near_fault_pulse("San Fernando PCD/SN", scale=0.8),
+    )
+    tight = dict(rtol=1e-10, atol=1e-12)
+    zeno = jr.simulate(block, jr.FixedBase(), pulse, rest_tolerance=0.0, **tight)
+    assert int(zeno.outcome) == jr.Outcome.ROCKING
+    assert float(zeno.max_rotation) < math.pi / 2 / float(block.alpha)
+    assert int(zeno.status) in (jr.Status.SUCCESS, jr.Status.MAX_SEGMENTS)
+    # A tight rest rule gives the same largest excursion (and the SciPy
+    # reference agrees: 0.00143712 alpha from rest_tolerance 1e-8 down).
+    rule = jr.simulate(block, jr.FixedBase(), pulse, rest_tolerance=1e-10, **tight)
+    assert int(rule.status) == jr.Status.SUCCESS
+    assert float(zeno.max_rotation) == pytest.approx(float(rule.max_rotation), rel=1e-6)
+
+
+def test_rotation_past_overturning_without_the_event_is_a_failure():
+    """The last line of defence: whatever missed an event, |theta| > pi / 2
+    without overturning never comes back as SUCCESS."""
+    block, base = jr.Block(3.0, 1.0), jr.FixedBase()
+    c = _simulate._initial_carry(block, base, PULSE)
+    lost = eqx.tree_at(
+        lambda c: (c.max_theta, c.done), c, (jnp.asarray(2.0), jnp.asarray(True))
+    )
+    r = _simulate._response(lost, block, jr.SolverOptions())
+    assert int(r.status) == jr.Status.SOLVER_FAILED
+    assert int(r.outcome) != jr.Outcome.OVERTURNED
+
+
+@pytest.fixture(scope="module")
+def traced():
+    """`simulate` on a linear isolator built from traced values (vmap + jit:
+    one compile for every case)."""
+
+    def one(slenderness, period, amplitude, rtol):
+        block = jr.Block(slenderness, 1.0)
+        base = jr.LinearIsolator(period, 0.35, 0.5)
+        pulse = jr.MPPulse(amplitude, 0.68, 1.6, 180.0)
+        return jr.simulate(block, base, pulse, rtol=rtol)
+
+    cases = {
+        "valid": (4.0, 2.0, 1.15, 1e-8),
+        "nan slenderness": (np.nan, 2.0, 1.15, 1e-8),
+        "negative slenderness": (-4.0, 2.0, 1.15, 1e-8),
+        "huge slenderness": (1.4e154, 2.0, 1.15, 1e-8),
+        "negative period": (4.0, -2.0, 1.15, 1e-8),
+        "nan amplitude": (4.0, 2.0, np.nan, 1e-8),
+        "negative rtol": (4.0, 2.0, 1.15, -1e-8),
+    }
+    columns = [jnp.asarray(c) for c in zip(*cases.values())]
+    r = jax.jit(jax.vmap(one))(*columns)
+    return {
+        name: jax.tree_util.tree_map(lambda x: x[i], r) for i, name in enumerate(cases)
+    }
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "nan slenderness",
+        "negative slenderness",
+        "huge slenderness",
+        "negative period",
+        "nan amplitude",
+        "negative rtol",
+    ],
+)
+def test_traced_invalid_parameters_give_invalid_input_and_nan(traced, case):
+    r = traced[case]
+    assert int(r.status) == jr.Status.INVALID_INPUT
+    assert not r.ok
+    assert np.isnan(float(r.max_rotation))
+    assert np.isnan(float(r.max_base_displacement))
+    assert int(r.outcome) == jr.Outcome.NO_ROCKING and int(r.steps) == 0
+    assert "INVALID_INPUT" in r.summary()
+
+
+def test_traced_valid_parameters_are_unaffected(traced):
+    r = traced["valid"]
+    direct = jr.simulate(
+        jr.Block(4.0, 1.0),
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        jr.MPPulse(1.15, 0.68, 1.6, 180.0),
+    )
+    assert int(r.status) == jr.Status.SUCCESS
+    assert float(r.max_rotation) == pytest.approx(float(direct.max_rotation), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: jr.Block(1.4e154, 1.0), "`slenderness` must be finite, >= 0.01"),
+        (lambda: jr.Block(4.0, 1e-9), "`size` must be finite, >= 0.001"),
+        (lambda: jr.Block("4.0", 1.0), "`slenderness` must be a real number"),
+        (lambda: jr.Block(True, 1.0), "`slenderness` must be a real number"),
+        (lambda: jr.Block(4.0, None), "`size` must be a real number"),
+        (lambda: jr.LinearIsolator(2.0, 1 + 2j, 0.5), "`damping` must be a real"),
+        (lambda: jr.MPPulse(1.0, 0.5, 2.0, 0.0, t0=-10.0), "`t0` must be > -gamma"),
+        (lambda: jr.SolverOptions(max_steps=2.5), "`max_steps` must be an integer"),
+        (lambda: jr.fit_lognormal([1.0, 2.0], [True]), "`im` and `failed`"),
+    ],
+)
+def test_bad_values_name_the_parameter(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+# -- API errors that must be a ValueError naming the parameter -------------------
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: jr.behavior_map([], [1.0], jr.FixedBase(), PULSE), "`slenderness`"),
+        (lambda: jr.behavior_map([4.0], [], jr.FixedBase(), PULSE), "`size`"),
+        (lambda: jr.behavior_map(["a"], [1.0], jr.FixedBase(), PULSE), "`slenderness`"),
+        (
+            lambda: jr.behavior_map(
+                [4.0], [1.0], jr.FixedBase(), PULSE, chunk_size=2.5
+            ),
+            "`chunk_size`",
+        ),
+        (
+            lambda: jr.behavior_map([4.0], [1.0], jr.FixedBase(), PULSE, store=""),
+            "`store`",
+        ),
+        (
+            lambda: jr.behavior_map(
+                np.linspace(1, 7, 100000),
+                np.linspace(0.1, 4, 10000),
+                jr.FixedBase(),
+                PULSE,
+            ),
+            "cells",
+        ),
+        (lambda: jr.simulate(None, jr.FixedBase(), PULSE), "`block`"),
+        (lambda: jr.simulate(jr.Block(3.0, 1.0), "fixed", PULSE), "`base`"),
+        (lambda: jr.simulate(jr.Block(3.0, 1.0), jr.FixedBase(), 1.0), "`motion`"),
+        (
+            lambda: jr.simulate(jr.Block([3.0, 4.0], 1.0), jr.FixedBase(), PULSE),
+            "`block` must hold one value",
+        ),
+        (
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0), jr.FixedBase(), PULSE, history=True, history_step=0
+            ),
+            "`history_step`",
+        ),
+        (
+            lambda: jr.overturning_spectrum(
+                jr.Block(3.0, 1.0), jr.FixedBase(), [], [1.0]
+            ),
+            "`frequency_ratio`",
+        ),
+    ],
+)
+def test_api_errors_are_value_errors_naming_the_parameter(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+def _tune(**overrides):
+    kwargs = dict(
+        make_base=lambda p: jr.LinearIsolator(p["period"], 0.35, 0.5),
+        init={"period": 2.0},
+        blocks=jr.Block(jnp.array([4.0]), jnp.array([1.0])),
+        motions=PULSE,
+        bounds={"period": (1.0, 3.0)},
+        steps=0,
+    )
+    kwargs.update(overrides)
+    return jr.design.tune_isolator(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (dict(capacity=-1.0), "`capacity` must be finite and > 0"),
+        (dict(capacity=0.0), "`capacity` must be finite and > 0"),
+        (dict(capacity=float("nan")), "`capacity` must be finite"),
+        (dict(penalty=-10.0), "`penalty` must be finite and >= 0"),
+        (dict(learning_rate=-1.0), "`learning_rate` must be finite and > 0"),
+        (dict(learning_rate=float("nan")), "`learning_rate` must be finite"),
+        (dict(steps=-1), "`steps` must be an integer >= 0"),
+        (dict(init={}), "`init` must be a non-empty dict"),
+        (dict(bounds={"period": (1.0, float("inf"))}), r"bounds\['period'\]"),
+        (dict(make_base=lambda p: jr.FixedBase()), "`make_base` must return"),
+    ],
+)
+def test_tune_isolator_checks_its_arguments(overrides, message):
+    with pytest.raises(ValueError, match=message):
+        _tune(**overrides)
+
+
+def test_fragility_names_a_zero_amplitude_motion():
+    motions = jr.MPPulse(jnp.array([0.0, 1.0]), 0.5, 2.0, 0.0)
+    with pytest.raises(ValueError, match="`motions`.*zero amplitude"):
+        jr.fragility(4.0, 1.0, jr.FixedBase(), motions)
+
+
+# -- BehaviorMap.load ------------------------------------------------------------
+
+
+def _saved_map(tmp_path, **changes):
+    arrays = dict(
+        slenderness=np.array([2.0, 3.0]),
+        size=np.array([1.0]),
+        outcome=np.zeros((2, 1), dtype=int),
+        max_rotation=np.zeros((2, 1)),
+        max_base_displacement=np.zeros((2, 1)),
+        impacts=np.zeros((2, 1), dtype=int),
+        uplift_time=np.full((2, 1), np.nan),
+        status=np.zeros((2, 1), dtype=int),
+        steps=np.zeros((2, 1), dtype=int),
+        segments=np.zeros((2, 1), dtype=int),
+    )
+    arrays.update(changes)
+    meta = json.dumps(dict(base="fixed base", motion="m", seconds=0.0))
+    path = tmp_path / "map.npz"
+    np.savez(path, metadata=np.array(meta), **arrays)
+    return path
+
+
+def test_load_reads_a_consistent_map(tmp_path):
+    bm = jr.BehaviorMap.load(_saved_map(tmp_path))
+    assert bm.outcome.shape == (2, 1) and bm.counts()["no_rocking"] == 2
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(outcome=np.full((2, 1), 7)), "outcome holds codes"),
+        (dict(outcome=np.full((2, 1), -1)), "outcome holds codes"),
+        (dict(status=np.full((2, 1), 9)), "status holds codes"),
+        (dict(max_rotation=np.zeros((3, 1))), "max_rotation has shape"),
+        (dict(outcome=np.zeros((2, 2), dtype=int)), "outcome has shape"),
+    ],
+)
+def test_load_refuses_inconsistent_arrays(tmp_path, changes, message):
+    with pytest.raises(ValueError, match=message):
+        jr.BehaviorMap.load(_saved_map(tmp_path, **changes))
+
+
+def test_load_refuses_corrupt_truncated_and_foreign_files(tmp_path):
+    good = _saved_map(tmp_path).read_bytes()
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good[: len(good) // 2])
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip file at all")
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, x=np.arange(3))
+    bad_meta = tmp_path / "bad_meta.npz"
+    np.savez(bad_meta, metadata=np.array("{not json"), x=np.arange(3))
+    for path in (truncated, garbage, foreign, bad_meta, tmp_path / "missing.npz"):
+        with pytest.raises(ValueError, match="not a behavior map"):
+            jr.BehaviorMap.load(path)

@@ -1,0 +1,305 @@
+"""The command line: argument checks before any computation, every error in one
+line without a traceback, help texts, --version and the pulse list."""
+
+import importlib.metadata
+import os
+import subprocess
+import sys
+
+import matplotlib.pyplot as plt
+import pytest
+
+import jaxrock as jr
+from jaxrock import plot
+from jaxrock.cli import main
+
+
+def _no_computation(*args, **kwargs):
+    raise AssertionError("the command computed before checking its arguments")
+
+
+@pytest.fixture
+def no_computation(monkeypatch):
+    """Bad arguments must fail before anything is computed (or compiled)."""
+    for name in ("simulate", "behavior_map", "fragility", "overturning_spectrum"):
+        monkeypatch.setattr(jr, name, _no_computation)
+
+
+@pytest.fixture
+def fake_simulate(monkeypatch):
+    """`simulate` without the integration: the CLI's own work, in milliseconds."""
+
+    class Result:
+        def summary(self):
+            return "fake response"
+
+    monkeypatch.setattr(jr, "simulate", lambda *args, **kwargs: Result())
+    monkeypatch.setattr(plot, "response", lambda r: plt.figure(figsize=(2, 2)))
+
+
+def _one_error_line(err: str) -> str:
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+    assert err.startswith("jaxrock: error: ") and "Traceback" not in err, err
+    return err
+
+
+def _run(args, cwd, python_code=None):
+    env = {k: v for k, v in os.environ.items() if k != "JAXROCK_DEBUG"}
+    head = ["-c", python_code] if python_code else ["-m", "jaxrock.cli"]
+    return subprocess.run(
+        [sys.executable, *head, *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=120,
+    )
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["map", "--pulse", "Atlantis X/Y"], "unknown pulse"),
+        (["map", "--record", "/nonexistent.AT2"], "no such file"),
+        (["simulate", "--size", "-1"], "`size` must be"),
+    ],
+)
+def test_cli_errors_are_one_line(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_cli_bad_range_exits_nonzero(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["map", "--slenderness", "7:1:3"])
+    assert exc.value.code != 0
+    assert "START <= STOP" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "out, message",
+    [
+        (".", "is a folder, not a file"),
+        ("sub", "is a folder, not a file"),
+        ("missing/map.png", "folder {tmp}/missing does not exist"),
+        ("map.jpg", "use one of .png, .pdf, .svg"),
+        ("map.npz", "use one of .png, .pdf, .svg"),
+    ],
+)
+def test_out_is_checked_before_computing(
+    out, message, tmp_path, no_computation, capsys
+):
+    (tmp_path / "sub").mkdir()
+    out = str(tmp_path / out)
+    # A grid far too large to compute here: only an early check returns at once.
+    big = ["--slenderness", "1:7:1000", "--size", "0.1:4:1000"]
+    assert main(["map", *big, "--out", out]) == 2
+    err = _one_error_line(capsys.readouterr().err)
+    assert err.startswith("jaxrock: error: --out: ")
+    assert message.format(tmp=tmp_path) in err
+
+
+def test_out_that_is_a_folder_once_png_is_added(tmp_path, no_computation, capsys):
+    (tmp_path / "fig.png").mkdir()
+    assert main(["simulate", "--out", str(tmp_path / "fig")]) == 2
+    assert "fig.png is a folder" in _one_error_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("name", ["fig.pdf", "fig.SVG", "fig.png"])
+def test_out_keeps_an_allowed_suffix(name, tmp_path, fake_simulate, capsys):
+    out = tmp_path / name
+    assert main(["simulate", "--out", str(out)]) == 0
+    assert out.is_file() and out.stat().st_size > 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"wrote {out}"
+
+
+def test_out_without_suffix_writes_png(tmp_path, capsys):
+    """The one real analysis of this file: the file named is the file written."""
+    assert main(["simulate", "--base", "fixed", "--out", str(tmp_path / "resp")]) == 0
+    written = tmp_path / "resp.png"
+    assert written.stat().st_size > 10_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["resp.png"]
+    assert capsys.readouterr().out.splitlines()[-1] == f"wrote {written}"
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1:inf:3", "finite"),
+        ("1:nan:3", "finite"),
+        ("-inf:1:3", "finite"),
+        ("1e400:1e401:2", "finite"),
+        ("0.1:4:1000001", "at most 1,000,000"),
+    ],
+)
+def test_range_errors_come_before_numpy(text, message, no_computation, recwarn, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["map", f"--size={text}"])
+    assert exc.value.code == 2
+    err = _one_error_line(capsys.readouterr().err)
+    assert "--size" in err and message in err
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_range_takes_a_million_points():
+    from jaxrock.cli import _parser
+
+    a = _parser().parse_args(["map", "--size", "0.1:4:1000000"])
+    assert a.size.size == 1_000_000 and a.size[0] == 0.1 and a.size[-1] == 4.0
+
+
+def test_chunk_size_must_be_positive(no_computation, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["map", "--chunk-size", "0"])
+    assert exc.value.code == 2
+    assert "--chunk-size" in _one_error_line(capsys.readouterr().err)
+
+
+def test_record_folder_and_missing_file(tmp_path, no_computation, capsys):
+    assert main(["map", "--record", str(tmp_path)]) == 2
+    err = _one_error_line(capsys.readouterr().err)
+    assert err == f"jaxrock: error: --record: {tmp_path} is a folder, not a file\n"
+    missing = tmp_path / "RSN0.AT2"
+    assert main(["simulate", "--record", str(missing)]) == 2
+    err = _one_error_line(capsys.readouterr().err)
+    assert err == f"jaxrock: error: --record: no such file: {missing}\n"
+
+
+COMMANDS = ["map", "fragility", "spectrum", "simulate", "pulses"]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_is_described(command, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main([command, "-h"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    usage, description = text.split("\n\n")[:2]
+    assert usage.startswith(f"usage: jaxrock {command}")
+    assert len(description.split()) >= 10 and not description.startswith("options")
+
+
+def test_help_shows_defaults_and_explains_options(capsys):
+    with pytest.raises(SystemExit):
+        main(["-h"])
+    top = capsys.readouterr().out
+    assert all(f"    {c}" in top for c in COMMANDS) and "--version" in top
+
+    with pytest.raises(SystemExit):
+        main(["map", "-h"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--chunk-size CHUNK_SIZE blocks per compiled batch" in text
+    assert "(default: 610)" in text and "(default: 2.0)" in text
+    assert "(default: 1.0:7.0:61)" in text and "(default: behavior_map.png)" in text
+    assert "see `jaxrock pulses`" in text
+    assert "(default: None)" not in text and "(default: False)" not in text
+
+    with pytest.raises(SystemExit):
+        main(["fragility", "-h"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--measure {pga,pgv,pga_ratio} intensity measure" in text
+    assert "(default: pga)" in text
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    version = importlib.metadata.version("jaxrock")
+    assert capsys.readouterr().out == f"jaxrock {version}\n"
+
+
+def test_pulses_lists_table_3_1(capsys):
+    assert main(["pulses"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(jr.NEAR_FAULT_PULSES)
+    for name, line in zip(jr.NEAR_FAULT_PULSES, lines):
+        p = jr.near_fault_pulse(name)
+        assert line.startswith(name + "  ")
+        fields = " ".join(line[len(name) :].split())
+        assert fields == (
+            f"A = {float(p.amplitude):g} m/s f_p = {float(p.frequency):g} Hz "
+            f"gamma = {float(p.gamma):g} nu = {float(p.phase):g} deg"
+        )
+
+
+def _boom(*args, **kwargs):
+    raise RuntimeError("solver state lost\nsecond line of detail")
+
+
+def test_internal_error_is_one_line(monkeypatch, capsys):
+    monkeypatch.delenv("JAXROCK_DEBUG", raising=False)
+    monkeypatch.setattr(jr, "simulate", _boom)
+    assert main(["simulate"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(
+        "jaxrock: error: internal error: RuntimeError: solver state lost"
+    )
+    assert err.endswith("(set JAXROCK_DEBUG=1 for the traceback)\n")
+
+
+def test_internal_error_reraised_for_debugging(monkeypatch):
+    monkeypatch.setenv("JAXROCK_DEBUG", "1")
+    monkeypatch.setattr(jr, "simulate", _boom)
+    with pytest.raises(RuntimeError, match="solver state lost"):
+        main(["simulate"])
+
+
+def test_keyboard_interrupt(monkeypatch, capsys):
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(jr, "simulate", interrupt)
+    try:
+        code = main(["simulate"])
+    except KeyboardInterrupt:
+        pytest.fail("the interrupt escaped main")
+    assert code == 130
+    assert capsys.readouterr().err == "jaxrock: interrupted\n"
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["map", "--slenderness", "1:inf:3"], "finite"),
+        (["map", "--record", "."], "--record: . is a folder, not a file"),
+        (["simulate", "--out", "."], "--out: . is a folder, not a file"),
+    ],
+)
+def test_no_traceback_from_a_real_process(args, message, tmp_path):
+    done = _run(args, cwd=tmp_path)
+    assert done.returncode == 2
+    assert message in _one_error_line(done.stderr)
+    assert "Warning" not in done.stderr and done.stdout == ""
+
+
+def test_internal_error_in_a_real_process(tmp_path):
+    code = (
+        "import sys, jaxrock\n"
+        "def boom(*args, **kwargs):\n"
+        "    raise RuntimeError('solver state lost')\n"
+        "jaxrock.simulate = boom\n"
+        "from jaxrock.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    done = _run(["simulate"], cwd=tmp_path, python_code=code)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert done.stderr.count("\n") == 1
+    assert done.stderr.startswith("jaxrock: error: internal error: RuntimeError")
+
+
+def test_console_script(tmp_path):
+    script = os.path.join(os.path.dirname(sys.executable), "jaxrock")
+    if not os.path.exists(script):
+        pytest.skip("the jaxrock console script is not installed")
+    done = subprocess.run(
+        [script, "map", "--out", "map.gif"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert "--out" in _one_error_line(done.stderr)
