@@ -15,7 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxrock as jr
-from jaxrock._simulate import SolverOptions, run
+from jaxrock._results import SolverOptions
+from jaxrock._simulate import run
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 DURATION = jnp.asarray(float(PULSE.end_time) + 5.0)

@@ -48,22 +48,22 @@ from ._isolators import (
 )
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
-from ._simulate import (  # noqa: E402
+from ._results import (  # noqa: E402
     EventKind as EventKind,
 )
-from ._simulate import (
+from ._results import (
     History as History,
 )
-from ._simulate import (
+from ._results import (
     Outcome as Outcome,
 )
-from ._simulate import (
+from ._results import (
     Response as Response,
 )
-from ._simulate import (
+from ._results import (
     SolverOptions as SolverOptions,
 )
-from ._simulate import (
+from ._results import (
     Status as Status,
 )
 from ._simulate import (

@@ -27,10 +27,11 @@ from ._block import Block
 from ._ground import AbstractGroundMotion, Record
 from ._isolators import AbstractIsolator
 from ._misc import is_count
-from ._simulate import Outcome, Response, SolverOptions, run
+from ._results import ATOL, RTOL, Outcome, Response, SolverOptions
+from ._simulate import run
 
 
-def _lanes(blocks: Block, motions: AbstractGroundMotion):
+def _pairs(blocks: Block, motions: AbstractGroundMotion):
     """Every (block, motion) pair as one lane: leaves of shape (n_blocks n_motions,)."""
     shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
     nb = int(np.prod(shape))
@@ -70,7 +71,7 @@ def responses(
     Traceable (use under `jax.jit` and `jax.jacfwd`); `blocks` and `motions` carry
     one batch axis (a `Record` is shared by all blocks).
     """
-    lane_blocks, lane_motions, shape = _lanes(blocks, motions)
+    lane_blocks, lane_motions, shape = _pairs(blocks, motions)
     if duration is None:
         duration = jnp.max(motions.end_time) + 5.0
     axes = (0, None if isinstance(motions, Record) else 0)
@@ -198,8 +199,8 @@ def tune_isolator(
     steps: int = 30,
     learning_rate: float = 0.05,
     optimizer: optax.GradientTransformation | None = None,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
+    rtol: float = RTOL,
+    atol: float = ATOL,
 ) -> DesignResult:
     """Minimise `isolator_objective` over the parameters in `init` with Optax.
 

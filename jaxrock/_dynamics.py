@@ -11,7 +11,7 @@ import jax.numpy as jnp
 
 from ._block import Block
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractIsolator, FixedBase
+from ._isolators import AbstractIsolator
 from ._misc import GRAVITY, computed_once
 from ._trig import sincos
 
@@ -62,7 +62,7 @@ def vector_field(t, y, args: Args):
     c1, s1 = _geometry(block, theta, s)
     ag = args.motion.acceleration(t)
     j = 4.0 / 3.0 * block.size**2
-    if isinstance(base, FixedBase):
+    if base.n_states == 0:  # a fixed base
         theta_ddot = -(c1 * ag + GRAVITY * s1) / j
         return (
             jnp.where(rocking, theta_dot, 0.0),
@@ -86,7 +86,7 @@ def vector_field(t, y, args: Args):
 
 def absolute_base_acceleration(t, base_state, base, motion):
     """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
-    if isinstance(base, FixedBase):
+    if base.n_states == 0:  # a fixed base
         a = motion.acceleration(t)
     else:
         a = -base.force(base_state)
@@ -109,6 +109,15 @@ def restitution(block: Block, base: AbstractIsolator):
     den = 4.0 * h2 + 4.0 * b2 + ratio * (h2 + 4.0 * b2)
     num = 4.0 * h2 - 2.0 * b2 + ratio * (h2 - 2.0 * b2)
     return num / den, den
+
+
+def rests_at_impact(block: Block, e, theta_dot_squared, rest_tolerance):
+    """The rest rule, against Zeno chattering: rocking ends at an impact when
+    e <= 0, or when the rebound could lift the block by less than
+    `rest_tolerance` alpha, the rise (e theta'-)^2 / (2 p^2 sin alpha) of free
+    rocking from theta = 0 (linearized). `theta_dot_squared` is theta'-^2."""
+    rise = e * e * theta_dot_squared / (2.0 * block.p**2 * block.b / block.size)
+    return (e <= 0) | (rise < rest_tolerance * block.alpha)
 
 
 def impact(block, base, theta_dot, base_state, rest):

@@ -19,7 +19,7 @@ energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
 "guard" catches a phase begun on the wrong side of a near double root of theta'
 (see `condition_guard`). Diffrax lets the first condition in PyTree order win
-when several fire in one step; `_transition` then redoes the segment up to
+when several fire in one step; `transition` then redoes the segment up to
 just before that event if another condition's root came earlier.
 """
 
@@ -34,7 +34,7 @@ from jaxtyping import Array, Float
 from ._dynamics import Args, Phase, absolute_base_acceleration
 
 
-def _select(phase, translation, rising, falling):
+def _by_phase(phase, translation, rising, falling):
     return jnp.where(
         phase == Phase.TRANSLATION,
         translation,
@@ -47,7 +47,7 @@ def condition_a(t, y, args: Args, **kwargs):
     theta, _, base_state = y
     a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
     s_theta = args.sign * theta
-    return _select(
+    return _by_phase(
         args.phase,
         a_abs + args.block.uplift_acceleration,
         0.5 * jnp.pi - s_theta,
@@ -60,7 +60,7 @@ def condition_b(t, y, args: Args, **kwargs):
     _, theta_dot, base_state = y
     a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
     s_theta_dot = args.sign * theta_dot
-    return _select(
+    return _by_phase(
         args.phase,
         args.block.uplift_acceleration - a_abs,
         s_theta_dot,

@@ -7,7 +7,7 @@ any lane, and segments are short and uneven (uplift, apex, impact, new peaks of
 solve's set-up. Here an iteration advances every lane by one step attempt of
 the same solver and controller (Tsit5 and Diffrax's PIDController by default);
 the same event conditions are checked at the step's end, an event is located
-on the step's dense output by bracketed Newton, and `_transition` applies it
+on the step's dense output by bracketed Newton, and `transition` applies it
 exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
 For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`),
 and only the lanes with an event run the root find, in batches (`flat_step`).
@@ -23,11 +23,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._dynamics import Args, Phase, vector_field
-from ._events import EVENT_ATOL, EVENT_RTOL, condition_quiet, newton_in_bracket
+from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractIsolator, FixedBase
+from ._isolators import AbstractIsolator
 from ._misc import computed_once
-from ._simulate import _setup, _setup_conditions, _transition, redo_limit
+from ._model import event_conditions, redo_limit, segment_setup, transition
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -82,7 +82,7 @@ def _erk_step(tableau, t0, t1, y0, args):
 
 
 class _StepSolution:
-    """What `_transition` reads of a Diffrax solution, for one step."""
+    """What `transition` reads of a Diffrax solution, for one step."""
 
     def __init__(self, t, y, result, event_mask, steps):
         self.ts = t[None]
@@ -116,7 +116,7 @@ class _Attempt(eqx.Module):
 
 def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     """One step attempt of one lane, and the conditions at its ends."""
-    active, args, conditions, t_stop, dtmax, controller = _setup(
+    active, args, conditions, t_stop, dtmax, controller = segment_setup(
         c, block, base, motion, duration, opts
     )
     dtmax = jnp.inf if dtmax is None else dtmax
@@ -142,7 +142,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     # Events: the first condition (in order) that goes from > 0 to <= 0.
     crossed, fired, before = [], [], jnp.asarray(False)
     g0 = g1 = jnp.zeros_like(t0)
-    for cond in conditions:
+    for cond in jax.tree_util.tree_leaves(conditions):
         v0, v1 = cond(t0, y0, args), cond(t1, y1, args)
         crossed.append(keep & (v0 > 0) & (v1 <= 0))
         hit = crossed[-1] & ~before
@@ -234,7 +234,7 @@ def _locate(a: _Attempt, opts, unfired=()):
     a few kernels, where a loop ran about 18 (its state copied, its condition
     reduced, the interpolant's stacked stages a dot).
     """
-    conditions = _setup_conditions(a.args.base)
+    conditions = jax.tree_util.tree_leaves(event_conditions(a.args.base))
     evaluate = _dense_in_s(opts.solver, a)
     h = a.t1 - a.t0
 
@@ -266,7 +266,7 @@ def _locate(a: _Attempt, opts, unfired=()):
     # Located as `simulate` locates events; else the lane retries (`_finish`).
     converged = step * h <= EVENT_RTOL * jnp.abs(t) + EVENT_ATOL
     # The other conditions that crossed in the step, at its start and at the
-    # event: did one cross first (see `_transition`)?
+    # event: did one cross first (see `transition`)?
     candidates, values = [], []
     for i, (crossed, fired, cond) in enumerate(zip(a.crossed, a.fired, conditions)):
         if i not in unfired:
@@ -299,7 +299,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     result = diffrax.RESULTS.where(a.failed, diffrax.RESULTS.internal_error, result)
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     # (A redo needs an event: `limit` of other lanes is unused.)
-    new = _transition(c, sol, block, base, motion, duration, opts, limit)
+    new = transition(c, sol, block, base, motion, duration, opts, limit)
     # The next step: the controller's proposal (not the mean step of a segment).
     # After an unlocated event: at most half the step, ending at or before the
     # bracket's upper end (so each retry gets closer).
@@ -329,6 +329,10 @@ class _ForceFree(AbstractIsolator):
     conditions of pure translation)."""
 
     base: AbstractIsolator
+
+    @property
+    def n_states(self):
+        return self.base.n_states
 
     def initial_state(self):
         return self.base.initial_state()
@@ -368,11 +372,11 @@ def _locate_batch(sub: _Attempt, valid, opts):
         return jax.vmap(lambda a: _locate(a, opts, unfired))(sub)
 
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
-    if isinstance(sub.args.base, FixedBase):
+    if sub.args.base.n_states == 0:  # a fixed base
         rocking = eqx.tree_at(lambda s: s.args.motion, sub, _Still())
         return jax.lax.cond(translating, lambda: locate(sub), lambda: locate(rocking))
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
-    quiet = _setup_conditions(sub.args.base).index(condition_quiet)
+    quiet = event_conditions(sub.args.base)._fields.index("quiet")
     return jax.lax.cond(
         translating,
         lambda: locate(sub),

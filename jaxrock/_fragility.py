@@ -12,7 +12,7 @@ from ._ground import AbstractGroundMotion, MPPulse, Record
 from ._isolators import AbstractIsolator
 from ._maps import _batch_shape, behavior_map
 from ._misc import GRAVITY, positive
-from ._simulate import Outcome, Status
+from ._results import Outcome, Status
 
 MEASURES = ("pga", "pgv", "pga_ratio")
 

@@ -21,8 +21,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._dynamics import Phase, restitution
-from ._simulate import EventKind, _Carry
+from ._dynamics import Phase, restitution, rests_at_impact
+from ._model import Carry
+from ._results import EventKind
 from ._trig import sincos
 
 
@@ -60,13 +61,13 @@ def time_from_apex(p, x, k, gap, iterations: int = 16):
     return 2.0 / p * jnp.sqrt(gap) * carlson_rf(a, b, c, iterations)
 
 
-def _energy(c: _Carry, block):
+def _energy(c: Carry, block):
     """x = sin((alpha - |theta|) / 2) and (theta' / 2p)^2 = x^2 - k^2."""
     x, _ = sincos(0.5 * (block.alpha - c.sign * c.y[0]))
     return x, (c.y[1] / (2.0 * block.p)) ** 2
 
 
-def free_rocking_ready(c: _Carry, block, end_time):
+def free_rocking_ready(c: Carry, block, end_time):
     """The lane can be finished in closed form: fixed base, ground still,
     rocking on the near side of the corner (x > 0: |theta| < alpha) and below
     the separatrix (k^2 > 0: it cannot overturn)."""
@@ -75,7 +76,7 @@ def free_rocking_ready(c: _Carry, block, end_time):
     return ~c.done & rocking & (c.t >= end_time) & (x > 0) & (x * x > gap2)
 
 
-def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
+def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
     """Finish the `ready` lanes (see `free_rocking_ready`) as `simulate`'s
     segment loop would: their apexes and impacts (with the rest rule) up to
     `duration`, a segment each, and max |theta|. Elementwise over any batch
@@ -83,7 +84,6 @@ def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
     lane needs; other lanes are returned unchanged."""
     p, alpha = block.p, block.alpha
     e, _ = restitution(block, base)
-    sin_alpha = block.b / block.size
     x0 = jnp.sin(0.5 * alpha)  # x at theta = 0
     limit = opts.max_segments
 
@@ -130,9 +130,9 @@ def free_rocking(c: _Carry, block, base, duration, opts, ready) -> _Carry:
         """The impact at s["t"] (or the window's end first), then the apex."""
         end = s["t"] > duration
         gap2 = x0 * x0 - s["k"] ** 2
-        # The rest rule of `_transition`: (e theta'-)^2 / (2 p^2 sin alpha) small.
-        rise = 2.0 * e * e * gap2 / sin_alpha
-        rest = ~end & ((e <= 0) | (rise < opts.rest_tolerance * alpha))
+        # theta'-^2 = 4 p^2 (x0^2 - k^2) at the impact.
+        theta_dot_squared = 4.0 * p * p * gap2
+        rest = ~end & rests_at_impact(block, e, theta_dot_squared, opts.rest_tolerance)
         # After an impact k >= x0 sqrt(1 - e^2): R_F's arguments are of one
         # magnitude, and 6 duplications give full precision.
         k = jnp.sqrt(x0 * x0 - e * e * gap2)

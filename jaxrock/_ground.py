@@ -9,6 +9,7 @@ from jaxtyping import Array, Float
 from ._misc import (
     AbstractChecked,
     Constraint,
+    describe_values,
     finite,
     greater_than_zero,
     parameter,
@@ -97,6 +98,14 @@ class MPPulse(AbstractGroundMotion):
                 "> -gamma / (2 f_p) (a pulse that ends after t = 0)",
             ),
         ]
+
+    def describe(self):
+        return (
+            f"MP pulse (A = {describe_values(self.amplitude)} m/s, "
+            f"f_p = {describe_values(self.frequency)} Hz, "
+            f"gamma = {describe_values(self.gamma)}, "
+            f"nu = {describe_values(self.phase)} deg)"
+        )
 
     @property
     def half_duration(self):
@@ -201,6 +210,12 @@ class Record(AbstractGroundMotion):
             ),
             greater_than_zero("dt", self.dt),
         ]
+
+    def describe(self):
+        return (
+            f"record ({self.samples.shape[0]} samples, "
+            f"dt = {describe_values(self.dt)} s)"
+        )
 
     def acceleration(self, t):
         a = self.samples

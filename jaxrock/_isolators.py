@@ -21,6 +21,7 @@ from ._misc import (
     Constraint,
     at_least_zero,
     computed_once,
+    describe_values,
     finite,
     greater_than_zero,
     parameter,
@@ -38,6 +39,8 @@ class AbstractIsolator(AbstractChecked):
 
     n_states: ClassVar[int]
     free_rocking_closed_form: ClassVar[bool] = False
+    # The base state holds a hysteretic variable z (`hysteretic`).
+    hysteretic_state: ClassVar[bool] = False
 
     @abc.abstractmethod
     def initial_state(self) -> Float[Array, " n"] | None:
@@ -86,6 +89,9 @@ class FixedBase(AbstractIsolator):
     def initial_state(self):
         return None
 
+    def describe(self):
+        return "fixed base"
+
     def force(self, state):
         raise NotImplementedError("a fixed base has no isolator force")
 
@@ -122,6 +128,13 @@ class LinearIsolator(AbstractIsolator):
 
     def initial_state(self):
         return jnp.zeros(2, dtype=self.period.dtype)
+
+    def describe(self):
+        return (
+            f"linear isolator (T_s = {describe_values(self.period)} s, "
+            f"xi = {describe_values(self.damping)}, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
 
     def force(self, state):
         omega = 2.0 * jnp.pi / self.period
@@ -177,6 +190,7 @@ class FrictionPendulum(AbstractIsolator):
     gamma: Float[Array, "..."] = parameter("gamma", default=0.9)
     beta: Float[Array, "..."] = parameter("beta", default=0.1)
     eta: float = eqx.field(default=2.0, static=True, converter=float)
+    hysteretic_state: ClassVar[bool] = True
 
     def constraints(self):
         return [
@@ -191,6 +205,13 @@ class FrictionPendulum(AbstractIsolator):
                 "beta", self.beta, lambda v: self.gamma + v > 0, "with gamma + beta > 0"
             ),
         ]
+
+    def describe(self):
+        return (
+            f"friction pendulum (mu = {describe_values(self.friction)}, "
+            f"R = {describe_values(self.radius)} m, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
 
     @property
     def closed_form(self) -> bool:

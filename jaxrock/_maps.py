@@ -18,16 +18,19 @@ from ._block import Block
 from ._dynamics import Phase
 from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
-from ._ground import AbstractGroundMotion, MPPulse, Record
-from ._isolators import AbstractIsolator, FixedBase, FrictionPendulum, LinearIsolator
+from ._ground import AbstractGroundMotion, Record
+from ._isolators import AbstractIsolator
 from ._misc import as_float, grid_axis, is_count, positive
-from ._simulate import (
+from ._model import check_base_and_motion, initial_carry, response
+from ._results import (
+    ATOL,
+    MAX_SEGMENTS,
+    MAX_STEPS,
+    REST_TOLERANCE,
+    RTOL,
     Outcome,
     SolverOptions,
     Status,
-    _initial_carry,
-    _response,
-    check_base_and_motion,
 )
 
 _FIELDS = (
@@ -42,7 +45,7 @@ _FIELDS = (
 )
 
 
-def _select(mask, new, old):
+def _where_lanes(mask, new, old):
     """Per lane (leading axis): `new` where `mask`, else `old` (pytrees)."""
     return jax.tree_util.tree_map(
         lambda n, o: jnp.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o),
@@ -90,7 +93,7 @@ def _map_chunk(
     record = isinstance(motion, Record)
     axes = (0, 0, None if record else 0)
 
-    def lanes(cell):
+    def gather(cell):
         """The cells' block, base and motion, each with a lane axis (the motion
         None for a record: one motion for every lane, see `inputs`)."""
         cell = jnp.minimum(cell, n - 1)
@@ -99,14 +102,14 @@ def _map_chunk(
         return Block(slenderness[cell], size[cell]), take(base), lane_motion
 
     def inputs(per_lane):
-        """`lanes`' output as `flat_step` takes it (batched as `axes` says)."""
+        """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
         block, lane_base, lane_motion = per_lane
         return block, lane_base, motion if record else lane_motion
 
     def start(cell, per_lane):
-        c = jax.vmap(_initial_carry, in_axes=axes)(*inputs(per_lane))
+        c = jax.vmap(initial_carry, in_axes=axes)(*inputs(per_lane))
         later = jax.tree_util.tree_map(lambda x: x[jnp.minimum(cell, n - 1)], shared)
-        c = _select(c.rocked | pilot, c, later)
+        c = _where_lanes(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
     closed = base.free_rocking_closed_form
@@ -119,7 +122,7 @@ def _map_chunk(
         return free_rocking_ready(c, block, lane_motion.end_time)  # elementwise
 
     cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
-    per_lane0 = lanes(cell0)
+    per_lane0 = gather(cell0)
     c0 = start(cell0, per_lane0)
     out = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0)
 
@@ -138,7 +141,7 @@ def _map_chunk(
             ended = ended | closed_form(new, block, lane_motion)
             leaves = new.rocked | (a.t1 >= lane_motion.end_time)  # the shared phase
             finished = (cell < n) & (ended | (pilot & leaves))
-            new = _select(pilot & finished, c, new)
+            new = _where_lanes(pilot & finished, c, new)
             return (
                 new,
                 finished,
@@ -160,9 +163,9 @@ def _map_chunk(
         )
         cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)
-        fresh = lanes(cell)
-        c = _select(finished, start(cell, fresh), c)
-        per_lane = _select(finished, fresh, per_lane)
+        fresh = gather(cell)
+        c = _where_lanes(finished, start(cell, fresh), c)
+        per_lane = _where_lanes(finished, fresh, per_lane)
         return c, cell, queue + jnp.sum(finished), out, executed, useful, per_lane
 
     zero = jnp.asarray(0)
@@ -177,43 +180,8 @@ def _map_chunk(
         ready = ~carries.done & (carries.segments < opts.max_segments) & ~pilot
         ready = ready & (carries.phase != Phase.TRANSLATION)
         final = free_rocking(carries, blocks, base, duration, opts, ready)
-    responses = jax.vmap(_response, in_axes=(0, 0, None))(final, blocks, opts)
+    responses = jax.vmap(response, in_axes=(0, 0, None))(final, blocks, opts)
     return responses, carries, executed, useful
-
-
-def _fmt(x) -> str:
-    x = np.asarray(x)
-    if x.size == 1:
-        return f"{float(x.reshape(-1)[0]):g}"
-    return f"{x.min():g}..{x.max():g} ({x.size} values)"
-
-
-def describe_base(base: AbstractIsolator) -> str:
-    if isinstance(base, FixedBase):
-        return "fixed base"
-    if isinstance(base, LinearIsolator):
-        return (
-            f"linear isolator (T_s = {_fmt(base.period)} s, "
-            f"xi = {_fmt(base.damping)}, mass ratio {_fmt(base.mass_ratio)})"
-        )
-    if isinstance(base, FrictionPendulum):
-        return (
-            f"friction pendulum (mu = {_fmt(base.friction)}, "
-            f"R = {_fmt(base.radius)} m, mass ratio {_fmt(base.mass_ratio)})"
-        )
-    return type(base).__name__
-
-
-def describe_motion(motion: AbstractGroundMotion) -> str:
-    if isinstance(motion, MPPulse):
-        return (
-            f"MP pulse (A = {_fmt(motion.amplitude)} m/s, "
-            f"f_p = {_fmt(motion.frequency)} Hz, gamma = {_fmt(motion.gamma)}, "
-            f"nu = {_fmt(motion.phase)} deg)"
-        )
-    if isinstance(motion, Record):
-        return f"record ({motion.samples.shape[0]} samples, dt = {_fmt(motion.dt)} s)"
-    return type(motion).__name__
 
 
 class BehaviorMap(eqx.Module):
@@ -341,7 +309,7 @@ def _batch_shape(module) -> tuple[int, ...]:
         ) from None
 
 
-def _lanes(module, shape, index):
+def _cells_of(module, shape, index):
     """Every leaf broadcast to `shape`, flattened and taken at `index` (1-D)."""
     return jax.tree_util.tree_map(
         lambda x: np.broadcast_to(np.asarray(x), shape).reshape(-1)[index], module
@@ -349,7 +317,7 @@ def _lanes(module, shape, index):
 
 
 # Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
-LANES = 64
+LANE_WIDTH = 64
 _PEER_TIMEOUT = 3600.0  # s without a new chunk from the other processes
 
 
@@ -437,12 +405,12 @@ def behavior_map(
     motion: AbstractGroundMotion,
     *,
     duration: float | None = None,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
+    rtol: float = RTOL,
+    atol: float = ATOL,
     chunk_size: int | None = 610,
     progress: bool | None = None,
-    max_segments: int = 2000,
-    rest_tolerance: float = 1e-6,
+    max_segments: int = MAX_SEGMENTS,
+    rest_tolerance: float = REST_TOLERANCE,
     solver=None,
     store: str | os.PathLike | None = None,
 ) -> "BehaviorMap":
@@ -456,7 +424,7 @@ def behavior_map(
     e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
     then has shape base batch + pulse batch + (n_slenderness, n_size).
     Cells run `chunk_size` at a time (`None`: all at once) through one compiled
-    loop on `LANES` (64) vmapped lanes; each iteration advances every lane by one
+    loop on `LANE_WIDTH` (64) vmapped lanes; each iteration advances every lane by one
     solver step, and a lane that finishes takes the chunk's next cell (the
     "flat loop", `_flat.py`). The pure-translation phase before uplift runs
     once per base, motion and slenderness (see `_map_chunk`), and the cells,
@@ -485,7 +453,7 @@ def behavior_map(
     opts = SolverOptions(
         rtol,
         atol,
-        16384,
+        MAX_STEPS,
         max_segments,
         rest_tolerance,
         solver or diffrax.Tsit5(),
@@ -499,7 +467,7 @@ def behavior_map(
     # are never analysed: maps of other sizes reuse a handful of compiles.
     # Small maps all take one chunk shape, that of a full set of lanes (padding
     # costs nothing but idle lanes; a compile costs seconds).
-    padded = max(1 << (chunk - 1).bit_length(), LANES)
+    padded = max(1 << (chunk - 1).bit_length(), LANE_WIDTH)
     padded = padded if chunk_size is None else min(padded, chunk_size)
     record = isinstance(motion, Record)
     n_base, n_motion = int(np.prod(base_shape)), int(np.prod(motion_shape))
@@ -509,8 +477,8 @@ def behavior_map(
         return (
             lam[il],
             r[ir],
-            _lanes(base, base_shape, ib),
-            None if record else _lanes(motion, motion_shape, im),
+            _cells_of(base, base_shape, ib),
+            None if record else _cells_of(motion, motion_shape, im),
         )
 
     ib, im, il, ir = np.unravel_index(
@@ -549,8 +517,8 @@ def behavior_map(
             dict(
                 slenderness=lam.tolist(),
                 size=r.tolist(),
-                base=describe_base(base),
-                motion=describe_motion(motion),
+                base=base.describe(),
+                motion=motion.describe(),
                 base_leaves=_leaf_digest(base),
                 base_form=str(jax.tree_util.tree_structure(base)),  # static fields
                 motion_leaves=_leaf_digest(motion),
@@ -595,7 +563,9 @@ def behavior_map(
     def compute(k, index, inputs, shared, pilot):
         """Chunk k: its responses and carries (NumPy), executed and useful steps."""
         args, count = chunk_args(k, index, inputs, shared, pilot), index.size
-        responses, carries, executed, useful = jax.device_get(_map_chunk(*args, LANES))
+        responses, carries, executed, useful = jax.device_get(
+            _map_chunk(*args, LANE_WIDTH)
+        )
         _COMPILED.add(_signature(args))
         trim = lambda tree: jax.tree_util.tree_map(lambda x: x[:count], tree)  # noqa: E731
         return trim(responses), trim(carries), int(executed), int(useful)
@@ -617,7 +587,7 @@ def behavior_map(
 
     # Pass 1: the pilots, from t = 0 to where their cells part ways.
     proto = jax.eval_shape(
-        _initial_carry,
+        initial_carry,
         Block(lam[0], r[0]),
         jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[2]),
         motion if record else jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[3]),
@@ -705,8 +675,8 @@ def behavior_map(
         slenderness=lam,
         size=r,
         **fields,
-        base=describe_base(base),
-        motion=describe_motion(motion),
+        base=base.describe(),
+        motion=motion.describe(),
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
     )

@@ -83,6 +83,14 @@ def at_least_zero(name, value) -> Constraint:
     return Constraint(name, value, lambda v: v >= 0, "finite and >= 0")
 
 
+def describe_values(x) -> str:
+    """A parameter for a title: its value, or the range of a batch."""
+    x = np.asarray(x)
+    if x.size == 1:
+        return f"{float(x.reshape(-1)[0]):g}"
+    return f"{x.min():g}..{x.max():g} ({x.size} values)"
+
+
 class AbstractChecked(eqx.Module):
     """A module whose parameters have allowed ranges (`constraints`).
 
@@ -94,6 +102,10 @@ class AbstractChecked(eqx.Module):
 
     def constraints(self) -> list[Constraint]:
         return []
+
+    def describe(self) -> str:
+        """A short description with the parameters' values (for titles)."""
+        return type(self).__name__
 
     def __check_init__(self):
         for c in self.constraints():

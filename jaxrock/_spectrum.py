@@ -9,7 +9,7 @@ from ._ground import SinePulse
 from ._isolators import AbstractIsolator
 from ._maps import behavior_map
 from ._misc import grid_axis, positive
-from ._simulate import Outcome, Status
+from ._results import Outcome, Status
 
 
 class OverturningSpectrum(eqx.Module):

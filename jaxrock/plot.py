@@ -5,7 +5,7 @@ import numpy as np
 
 from ._fragility import Fragility
 from ._maps import BehaviorMap
-from ._simulate import Outcome, Response
+from ._results import Outcome, Response
 from ._spectrum import OverturningSpectrum, linearized_overturning_amplitude
 
 _COLOURS = {

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import jaxrock as jr
-from jaxrock import _simulate
+from jaxrock import _model
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 
@@ -45,11 +45,11 @@ def test_rotation_past_overturning_without_the_event_is_a_failure():
     """The last line of defence: whatever missed an event, |theta| > pi / 2
     without overturning never comes back as SUCCESS."""
     block, base = jr.Block(3.0, 1.0), jr.FixedBase()
-    c = _simulate._initial_carry(block, base, PULSE)
+    c = _model.initial_carry(block, base, PULSE)
     lost = eqx.tree_at(
         lambda c: (c.max_theta, c.done), c, (jnp.asarray(2.0), jnp.asarray(True))
     )
-    r = _simulate._response(lost, block, jr.SolverOptions())
+    r = _model.response(lost, block, jr.SolverOptions())
     assert int(r.status) == jr.Status.SOLVER_FAILED
     assert int(r.outcome) != jr.Outcome.OVERTURNED
 

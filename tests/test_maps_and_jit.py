@@ -7,7 +7,7 @@ import pytest
 import reference as ref
 
 import jaxrock as jr
-from jaxrock import _maps, _simulate
+from jaxrock import _maps, _model, _simulate
 from jaxrock.cli import main
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
@@ -112,7 +112,7 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     )
     shared = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=None, progress=False)
     assert calls == [True, False]  # the pilots, then the cells from their carries
-    lanes = _maps.LANES  # a map of 15 cells runs as one chunk of 64 lanes
+    lanes = _maps.LANE_WIDTH  # a map of 15 cells runs as one chunk of 64 lanes
 
     def pad(x):
         x = np.asarray(x)
@@ -123,9 +123,9 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     )
     lam, r = pad(np.repeat(LAM, SIZE.size)), pad(np.tile(SIZE, LAM.size))
     bases, motions = each(base), each(PULSE)
-    initial = jax.vmap(_simulate._initial_carry)(jr.Block(lam, r), bases, motions)
+    initial = jax.vmap(_model.initial_carry)(jr.Block(lam, r), bases, motions)
     initial = jax.tree_util.tree_map(np.asarray, initial)
-    opts = _simulate.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
+    opts = jr.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
     duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
     count, pilot = np.asarray(LAM.size * SIZE.size), np.asarray(False)
     compiles = original._cached._cache_size()

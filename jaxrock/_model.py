@@ -1,0 +1,495 @@
+"""The event-driven model that both engines share: the carry of one analysis,
+its start, the event conditions of a segment, the transition at an event and
+the response at the end.
+
+jaxrock has two engines. `simulate` (`_simulate.py`) runs one Diffrax solve
+per event-to-event segment in a `lax.while_loop`: it carries forward-mode
+gradients and records time histories. Behavior maps (`_flat.py`, `_maps.py`)
+run a flat loop in which every iteration advances each of many vmapped lanes
+by one solver step, so lanes never wait for each other's segments. Both apply
+the same vector field (`_dynamics.py`), the same conditions (`_events.py`)
+and the same `transition` below, and the tests check that a map equals
+`simulate` cell by cell.
+"""
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from ._dynamics import (
+    Args,
+    Phase,
+    absolute_base_acceleration,
+    impact,
+    restitution,
+    rests_at_impact,
+)
+from ._events import (
+    condition_a,
+    condition_b,
+    condition_base,
+    condition_guard,
+    condition_quiet,
+    quiet,
+)
+from ._ground import AbstractGroundMotion
+from ._isolators import AbstractIsolator
+from ._misc import first_true
+from ._results import EventKind, Outcome, Response, Status
+
+
+class Carry(eqx.Module):
+    t: Float[Array, ""]
+    y: tuple
+    phase: Int[Array, ""]
+    sign: Float[Array, ""]
+    max_theta: Float[Array, ""]
+    max_u: Float[Array, ""]
+    impacts: Int[Array, ""]
+    uplift_time: Float[Array, ""]
+    rocked: Bool[Array, ""]
+    overturned: Bool[Array, ""]
+    status: Int[Array, ""]
+    segments: Int[Array, ""]
+    steps: Int[Array, ""]
+    segment_steps: Int[Array, ""]  # steps of the current segment so far
+    done: Bool[Array, ""]
+    kind: Int[Array, ""]
+    dt: Float[Array, ""]  # next step (s): a segment's first, or the flat loop's next
+    theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
+    # A redo (see `transition`) ends the segment's steps here (s); inf: no redo.
+    t_limit: Float[Array, ""]
+
+
+def _uplift_now(t, y, phase, block, base, motion):
+    """In translation with |u'' + x_g''| >= g tan(alpha): rocking starts at once.
+
+    Returns (uplift, sign). Applies at t = 0 and when rocking ends at an impact.
+    """
+    a_abs = absolute_base_acceleration(t, y[2], base, motion)
+    threshold = block.uplift_acceleration
+    uplift = (phase == Phase.TRANSLATION) & (jnp.abs(a_abs) >= threshold)
+    return uplift, jnp.where(a_abs < 0, 1.0, -1.0)
+
+
+def initial_carry(block, base, motion, valid=True) -> Carry:
+    """At rest at t = 0; rocking at once if the ground's acceleration uplifts
+    the block. With `valid` False (a parameter out of range) the analysis is
+    over before it starts, with status INVALID_INPUT."""
+    zero = jnp.zeros((), dtype=block.size.dtype)
+    t = zero
+    y = (zero, zero, base.initial_state())
+    phase = jnp.asarray(Phase.TRANSLATION)
+    uplift, sign = _uplift_now(t, y, phase, block, base, motion)
+    valid = valid & block.valid() & base.valid() & motion.valid()
+    uplift = uplift & valid
+    return Carry(
+        t=t,
+        y=y,
+        phase=jnp.where(uplift, Phase.RISING, phase),
+        sign=sign,
+        max_theta=zero,
+        max_u=zero,
+        impacts=jnp.asarray(0),
+        uplift_time=jnp.where(uplift, t, jnp.nan),
+        rocked=uplift,
+        overturned=jnp.asarray(False),
+        status=jnp.where(valid, Status.SUCCESS, Status.INVALID_INPUT),
+        segments=jnp.asarray(0),
+        steps=jnp.asarray(0),
+        segment_steps=jnp.asarray(0),
+        done=~valid,
+        kind=jnp.asarray(EventKind.END),
+        dt=jnp.asarray(1e-3, dtype=zero.dtype),
+        theta_ref=zero,
+        t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
+    )
+
+
+def segment_end(c: Carry, motion, duration):
+    """(shaking, end of the segment): a segment stops at the end of the
+    excitation (the step limit that keeps uplifts from hiding inside a step is
+    needed only while the ground moves), else at `duration`."""
+    shaking = c.t < motion.end_time
+    return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
+
+
+def segment_setup(c: Carry, block, base, motion, duration, opts):
+    """What a segment (or a step of the flat loop) starts from: whether the lane
+    is active, the vector field's arguments, the event conditions, the end of
+    the segment, the largest step (None: no limit) and the step-size controller."""
+    active = ~c.done & (c.segments < opts.max_segments)
+    args = Args(
+        block,
+        base,
+        motion,
+        c.phase,
+        c.sign,
+        c.max_u,
+        c.t >= motion.end_time,
+        c.theta_ref,
+    )
+    conditions = event_conditions(base)
+    shaking, t_stop = segment_end(c, motion, duration)
+    t_stop = jnp.minimum(t_stop, c.t_limit)
+    max_step = motion.max_step
+    dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
+    controller = diffrax.PIDController(
+        rtol=opts.rtol,
+        atol=opts.atol,
+        dtmax=dtmax,
+        step_ts=motion.step_ts,
+        jump_ts=motion.jump_ts,
+    )
+    return active, args, conditions, t_stop, dtmax, controller
+
+
+# A redo ends at least this long (s) before the event it replaces.
+REDO_MARGIN = 1e-9
+
+
+def redo_limit(t0, t, candidates, start_values, event_values):
+    """Where a redo ends (inf: none) when conditions among `candidates` (all
+    but the one that fired) went from > 0 at t0 to < 0 at the event t: their
+    roots came first.
+
+    Half-way from the earliest of their roots (secant estimates) to t: the redo
+    integrates its last step differently, and a root close to t could move
+    before a limit just short of it (a slow impact moved by 3e-8 s); if an
+    estimate is late, the redo ends without the earlier root, and the next
+    segment repeats this from closer.
+    """
+    limit = jnp.asarray(jnp.inf, dtype=t.dtype)
+    for candidate, v0, v1 in zip(candidates, start_values, event_values):
+        earlier = candidate & (v0 > 0) & (v1 < 0)
+        root = t0 + (t - t0) * v0 / jnp.where(earlier, v0 - v1, 1.0)
+        limit = jnp.where(earlier, jnp.minimum(limit, 0.5 * (root + t)), limit)
+    return jnp.where(jnp.isinf(limit), limit, jnp.minimum(limit, t - REDO_MARGIN))
+
+
+class Conditions(NamedTuple):
+    """The event conditions of a segment, as Diffrax's `Event` takes them (a
+    PyTree; its `event_mask` has the same structure). Each is > 0 inside its
+    phase and fires where it reaches 0 (`_events.py` tabulates them by phase).
+    When several fire in one step Diffrax takes the first in this order;
+    `transition` then redoes the segment if another's root came earlier."""
+
+    angle: Callable  # uplift towards +b; overturn (rising); impact (falling)
+    rate: Callable  # uplift towards -b; apex (rising); rising again (falling)
+    guard: Callable  # a rocking phase begun on the wrong side of a double root
+    base_peak: Callable | None = None  # a new peak of |u| (isolated bases)
+    quiet: Callable | None = None  # nothing can happen any more (isolated bases)
+
+
+def event_conditions(base) -> Conditions:
+    """The conditions of a segment on `base` (a fixed base has no base state)."""
+    if base.n_states == 0:
+        return Conditions(condition_a, condition_b, condition_guard)
+    peak = base.peak_condition() or condition_base
+    return Conditions(condition_a, condition_b, condition_guard, peak, condition_quiet)
+
+
+class _SegmentEnd(NamedTuple):
+    """How a segment (or one step of the flat loop) ended."""
+
+    t: Array
+    y: tuple
+    event: Array  # an event condition fired
+    reached_end: Array  # the segment's end (the window's, or the excitation's)
+    cut: Array  # a flat-loop step that ends before the segment's end
+    failed: Array
+    status: Array  # the status after it
+    segment_steps: Array  # steps of the segment so far
+
+
+def _classify_end(c: Carry, sol, motion, duration, opts, active) -> _SegmentEnd:
+    t = sol.ts[-1]
+    y = jax.tree_util.tree_map(lambda x: x[-1], sol.ys)
+    event = sol.result == diffrax.RESULTS.event_occurred
+    reached_end = sol.result == diffrax.RESULTS.successful
+    # A step that ends before the segment's end (the flat loop of maps) only
+    # moves the state on.
+    cut = reached_end & (t < segment_end(c, motion, duration)[1])
+    segment_steps = c.segment_steps + sol.stats["num_steps"]
+    too_long = segment_steps > opts.max_steps
+    failed = active & (~(event | reached_end) | too_long)
+    status = jnp.where(
+        failed,
+        jnp.where(
+            (sol.result == diffrax.RESULTS.max_steps_reached) | too_long,
+            Status.MAX_STEPS,
+            Status.SOLVER_FAILED,
+        ),
+        c.status,
+    )
+    return _SegmentEnd(
+        t, y, event, reached_end & ~cut, cut, failed, status, segment_steps
+    )
+
+
+class _Events(NamedTuple):
+    """What the fired conditions mean in the segment's phase."""
+
+    uplift: Array
+    overturn: Array
+    apex: Array
+    impact: Array
+    reversal: Array  # falling, then rising again before the impact
+    guard_up: Array  # a falling phase that rises after all
+    guard_down: Array  # a rising phase that falls after all
+    settled: Array  # never really lifted (or an apex at theta = 0): at rest
+    base_peak: Array
+    quiet: Array
+    towards_plus: Array  # an uplift is about the corner at x = +b
+
+
+def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
+    def hit(m):
+        return jnp.asarray(False) if m is None else m & event
+
+    angle, rate, guard = hit(mask.angle), hit(mask.rate), hit(mask.guard)
+    translating = c.phase == Phase.TRANSLATION
+    rising, falling = c.phase == Phase.RISING, c.phase == Phase.FALLING
+    apex = rising & rate
+    # An apex at or below theta = 0 (a rebound too small to lift the block, as
+    # at the end of a Zeno sequence of impacts with `rest_tolerance` 0): the
+    # block rests on its base. (Falling from there, the impact condition
+    # s theta would start <= 0 and never fire.)
+    grounded = apex & (c.sign * theta <= 0)
+    return _Events(
+        uplift=translating & (angle | rate),
+        overturn=rising & angle,
+        apex=apex & ~grounded,
+        impact=falling & angle,
+        reversal=falling & rate,
+        guard_up=falling & guard,
+        guard_down=rising & guard & (c.theta_ref > 0),
+        settled=(rising & guard & (c.theta_ref <= 0)) | grounded,
+        base_peak=hit(mask.base_peak),
+        quiet=hit(mask.quiet),
+        towards_plus=angle,
+    )
+
+
+def _apply_jumps(ev: _Events, y, block, base, opts):
+    """The impact map (with the rest rule) and the state's resets at uplift and
+    rest. Returns the new state and whether rocking ends at the impact."""
+    theta, theta_dot, base_state = y
+    e, _ = restitution(block, base)
+    rest = rests_at_impact(block, e, theta_dot**2, opts.rest_tolerance)
+    post_theta_dot, post_base = impact(block, base, theta_dot, base_state, rest)
+    theta_dot = jnp.where(ev.impact, post_theta_dot, theta_dot)
+    if base_state is not None:
+        base_state = jnp.where(ev.impact, post_base, base_state)
+        base_state = base.at_transition(base_state, ev.base_peak)
+    theta = jnp.where(ev.impact | ev.uplift | ev.settled, 0.0, theta)
+    theta_dot = jnp.where(ev.settled, 0.0, theta_dot)
+    return (theta, theta_dot, base_state), rest
+
+
+def _next_phase(c: Carry, ev: _Events, rest, t, y, block, base, motion):
+    """The phase and sign that follow, and whether rocking starts here (an
+    uplift, or an impact that ends rocking while the base still uplifts)."""
+    phase = first_true(
+        [
+            ev.uplift,
+            ev.apex,
+            ev.impact & ~rest,
+            ev.impact & rest,
+            ev.reversal | ev.guard_up,
+            ev.guard_down,
+            ev.settled,
+        ],
+        [
+            Phase.RISING,
+            Phase.FALLING,
+            Phase.RISING,
+            Phase.TRANSLATION,
+            Phase.RISING,
+            Phase.FALLING,
+            Phase.TRANSLATION,
+        ],
+        c.phase,
+    )
+    sign = jnp.where(ev.uplift, jnp.where(ev.towards_plus, 1.0, -1.0), c.sign)
+    sign = jnp.where(ev.impact & ~rest, -c.sign, sign)
+    again, again_sign = _uplift_now(t, y, phase, block, base, motion)
+    again = again & ev.impact & rest
+    phase = jnp.where(again, Phase.RISING, phase)
+    sign = jnp.where(again, again_sign, sign)
+    return phase, sign, ev.uplift | again
+
+
+def _event_kind(ev: _Events, rest, failed, still):
+    return first_true(
+        [
+            failed,
+            ev.uplift,
+            ev.apex,
+            ev.impact & ~rest,
+            ev.impact & rest,
+            ev.overturn,
+            ev.reversal | ev.guard_up | ev.guard_down,
+            ev.settled,
+            ev.base_peak,
+            still,
+        ],
+        [
+            EventKind.FAILURE,
+            EventKind.UPLIFT,
+            EventKind.APEX,
+            EventKind.IMPACT,
+            EventKind.REST,
+            EventKind.OVERTURN,
+            EventKind.REVERSAL,
+            EventKind.REST,
+            EventKind.BASE_PEAK,
+            EventKind.QUIET,
+        ],
+        EventKind.END,
+    )
+
+
+def _advance(
+    c: Carry, end: _SegmentEnd, ev: _Events, y, rest, sol, block, base, motion, duration
+) -> Carry:
+    """The carry after the segment: the next phase, running maxima, counts,
+    and whether the analysis is over."""
+    t, cut = end.t, end.cut
+    phase, sign, started = _next_phase(c, ev, rest, t, y, block, base, motion)
+    theta, base_state = y[0], y[2]
+    max_theta = jnp.maximum(c.max_theta, jnp.abs(theta))
+    # max |u| over segment ends (its peaks are located events), as `simulate`
+    # sees it: the flat loop's steps that only move the state on ("cut") do not
+    # raise it, else the "base" condition (|u| above it) would be <= 0 only
+    # near the top of a peak, and a step over that top would miss the peak.
+    max_u = (
+        c.max_u
+        if base_state is None
+        else jnp.where(cut, c.max_u, jnp.maximum(c.max_u, jnp.abs(base_state[0])))
+    )
+    # Nothing can happen any more (ground still, block in translation, base energy
+    # too low): the analysis ends early.
+    args = Args(
+        block, base, motion, phase, sign, max_u, t >= motion.end_time, c.theta_ref
+    )
+    still = ev.quiet | (quiet(y, args) <= 0)
+    max_theta = jnp.where(ev.overturn, 0.5 * jnp.pi, max_theta)
+    steps = sol.stats["num_steps"]
+    over = end.reached_end & ~end.event & (t >= duration)
+    return Carry(
+        t=t,
+        y=y,
+        phase=phase,
+        sign=sign,
+        max_theta=max_theta,
+        max_u=max_u,
+        impacts=c.impacts + ev.impact.astype(c.impacts.dtype),
+        uplift_time=jnp.where(jnp.isnan(c.uplift_time) & started, t, c.uplift_time),
+        rocked=c.rocked | started,
+        overturned=c.overturned | ev.overturn,
+        status=end.status,
+        segments=c.segments + jnp.where(cut, 0, 1),
+        steps=c.steps + steps,
+        segment_steps=jnp.where(cut, end.segment_steps, 0),
+        done=ev.overturn | end.failed | over | still,
+        theta_ref=jnp.where(cut, c.theta_ref, sign * theta),
+        dt=jnp.where(steps > 0, (t - c.t) / jnp.maximum(steps, 1), c.dt),
+        kind=_event_kind(ev, rest, end.failed, still),
+        t_limit=jnp.where(end.event | (t >= c.t_limit), jnp.inf, c.t_limit),
+    )
+
+
+def _merge_redo(c: Carry, new: Carry, active, redo, limit) -> Carry:
+    """A frozen lane keeps its carry; a redo too, but for its limit and steps."""
+    redone = eqx.tree_at(
+        lambda c: (c.t_limit, c.steps, c.kind),
+        c,
+        (
+            jnp.where(redo, limit, c.t_limit),
+            jnp.where(redo, new.steps, c.steps),
+            jnp.where(redo, EventKind.END, c.kind),
+        ),
+    )
+    return jax.tree_util.tree_map(
+        lambda n, r: jnp.where(active & ~redo, n, r), new, redone
+    )
+
+
+def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -> Carry:
+    """Apply what ended the segment: uplift, apex, impact map, overturn, ...
+
+    An event that is not the earliest root in its step (where several fire,
+    Diffrax takes the first in order) is not applied: the segment is redone
+    from its start up to `limit` (`redo_limit`, computed here from the
+    conditions at the segment's start unless given), where the earlier root
+    fires alone. No redo inside a redo, nor within 2 `REDO_MARGIN` of the
+    segment's start: roots closer than that end as one event (the first in
+    order).
+    """
+    active = ~c.done & (c.segments < opts.max_segments)
+    end = _classify_end(c, sol, motion, duration, opts, active)
+    if limit is None:
+        _, args, named, *_ = segment_setup(c, block, base, motion, duration, opts)
+        conditions = jax.tree_util.tree_leaves(named)
+        limit = redo_limit(
+            c.t,
+            end.t,
+            [~m for m in sol.event_mask],
+            [cond(c.t, c.y, args) for cond in conditions],
+            [cond(end.t, end.y, args) for cond in conditions],
+        )
+    redo = active & end.event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)
+    redo = redo & (end.t - 2.0 * REDO_MARGIN > c.t)
+    # The solver's mask holds the conditions present, in order: named again.
+    conditions = jax.tree_util.tree_structure(event_conditions(base))
+    mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
+    ev = _decode(c, mask, end.event, end.y[0])
+    y, rest = _apply_jumps(ev, end.y, block, base, opts)
+    new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration)
+    return _merge_redo(c, new, active, redo, limit)
+
+
+def response(c: Carry, block, opts) -> Response:
+    status = jnp.where(c.done, c.status, Status.MAX_SEGMENTS)
+    status = jnp.where(c.status != Status.SUCCESS, c.status, status)
+    # |theta| beyond pi / 2 without the overturn event: an event was missed,
+    # and nothing after it can be trusted.
+    lost = ~c.overturned & (c.max_theta > 0.5 * jnp.pi)
+    status = jnp.where(lost & (status == Status.SUCCESS), Status.SOLVER_FAILED, status)
+    outcome = jnp.where(
+        c.overturned,
+        Outcome.OVERTURNED,
+        jnp.where(c.rocked, Outcome.ROCKING, Outcome.NO_ROCKING),
+    )
+    invalid = status == Status.INVALID_INPUT
+    nan = jnp.asarray(jnp.nan, dtype=c.max_theta.dtype)
+    return Response(
+        outcome=outcome,
+        max_rotation=jnp.where(invalid, nan, c.max_theta / block.alpha),
+        max_base_displacement=jnp.where(invalid, nan, c.max_u),
+        impacts=c.impacts,
+        uplift_time=jnp.where(invalid, nan, c.uplift_time),
+        status=status,
+        steps=c.steps,
+        segments=c.segments,
+    )
+
+
+def check_base_and_motion(base, motion):
+    """`ValueError` unless `base` is an isolator and `motion` a ground motion."""
+    if not isinstance(base, AbstractIsolator):
+        raise ValueError(
+            "`base` must be FixedBase, LinearIsolator or FrictionPendulum, got "
+            f"{type(base).__name__}"
+        )
+    if not isinstance(motion, AbstractGroundMotion):
+        raise ValueError(
+            "`motion` must be an MPPulse, SinePulse or Record, got "
+            f"{type(motion).__name__}"
+        )
