@@ -6,7 +6,6 @@ import os
 import time
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import diffrax
 import equinox as eqx
@@ -32,6 +31,7 @@ from ._results import (
     SolverOptions,
     Status,
 )
+from ._store import ChunkStore
 
 _FIELDS = (
     "outcome",
@@ -318,7 +318,6 @@ def _cells_of(module, shape, index):
 
 # Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
 LANE_WIDTH = 64
-_PEER_TIMEOUT = 3600.0  # s without a new chunk from the other processes
 
 
 # Signatures of the chunk loops compiled so far (see `_signature`).
@@ -330,41 +329,6 @@ def _signature(args) -> tuple:
     included), shapes, dtypes and devices of its arguments."""
     leaves, treedef = jax.tree_util.tree_flatten(args)
     return treedef, tuple((x.shape, x.dtype, str(x.sharding)) for x in leaves)
-
-
-_CHUNK_ARRAYS = _FIELDS + ("index", "executed", "useful")
-
-
-def _read_chunk(path: Path, key_digest: str) -> dict | None:
-    """A stored chunk's arrays; None if it is unreadable (truncated or corrupt:
-    it is then computed again). `ValueError` if it belongs to another map."""
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            key = str(f["key"]) if "key" in f.files else None
-            arrays = {name: f[name] for name in _CHUNK_ARRAYS}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        return None
-    if key != key_digest:
-        raise ValueError(
-            f"`store` {str(path.parent)!r} holds chunks of another map "
-            f"({path.name}); use a new folder"
-        )
-    return arrays
-
-
-def _wait_for(path: Path) -> None:
-    """Wait for another process to write a chunk (while the store keeps growing)."""
-    last, count = time.monotonic(), -1
-    while not path.exists():
-        n = len(list(path.parent.glob("chunk_*.npz")))
-        if n != count:
-            last, count = time.monotonic(), n
-        elif time.monotonic() - last > _PEER_TIMEOUT:
-            raise RuntimeError(
-                f"no new chunk in {path.parent} for {_PEER_TIMEOUT:.0f} s while "
-                f"waiting for {path.name}: has another process stopped?"
-            )
-        time.sleep(0.05)
 
 
 def _chunk_size(chunk_size) -> int | None:
@@ -507,12 +471,6 @@ def behavior_map(
             "`store=DIR` on a file system all processes share"
         )
     if store is not None:
-        if not str(store).strip():
-            raise ValueError("`store` must name a folder, got an empty string")
-        store = Path(store)
-        if store.exists() and not store.is_dir():
-            raise ValueError(f"`store` {str(store)!r} is a file, not a folder")
-        store.mkdir(parents=True, exist_ok=True)
         key = json.dumps(
             dict(
                 slenderness=lam.tolist(),
@@ -530,17 +488,7 @@ def behavior_map(
                 layout="cells dealt by start",  # chunks list their cells
             )
         )
-        manifest = store / "manifest.json"
-        if manifest.exists() and manifest.read_text() != key:
-            raise ValueError(
-                f"`store` {str(store)!r} holds chunks of another map; use a new folder"
-            )
-        tmp = manifest.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(key)
-        tmp.replace(manifest)  # atomic: other processes never read half of it
-        # Every chunk carries the key's digest too: a chunk of another map is
-        # refused even if the manifest is lost.
-        key_digest = hashlib.sha256(key.encode()).hexdigest()
+        store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
 
     def chunk_args(k, index, inputs, shared, pilot):
         """The arguments of `_map_chunk` for chunk k, the cells `index` of
@@ -600,7 +548,7 @@ def behavior_map(
     ]
     probe = (0, pilot_chunks[0], pilot_inputs, blank, True)
     mine = [k for k in range(chunks) if k % processes == me]
-    stored = lambda k: store is not None and (store / f"chunk_{k:06d}.npz").exists()  # noqa: E731
+    stored = lambda k: store is not None and store.has(k)  # noqa: E731
 
     t = time.perf_counter()
     with ThreadPoolExecutor(max(len(devices), os.cpu_count() or 1)) as pool:
@@ -628,11 +576,10 @@ def behavior_map(
         def run_chunk(k):
             """Chunk k's results: its cells ("index"), their `_FIELDS` arrays,
             and the lane-steps "executed" and "useful"."""
-            path = None if store is None else store / f"chunk_{k:06d}.npz"
-            if path is not None and k % processes != me:  # another process's
-                _wait_for(path)
-            if path is not None and path.exists():  # from before an interruption
-                stored_chunk = _read_chunk(path, key_digest)
+            if store is not None:
+                if k % processes != me:  # another process's
+                    store.wait_for(k)
+                stored_chunk = store.read(k)  # from before an interruption
                 if stored_chunk is not None:
                     return stored_chunk
             index = order[k::chunks]
@@ -641,10 +588,8 @@ def behavior_map(
             )
             out = {f: np.asarray(getattr(responses, f)) for f in _FIELDS}
             out |= {"index": index, "executed": executed, "useful": useful}
-            if path is not None:
-                tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-                np.savez(tmp, key=np.array(key_digest), **out)
-                tmp.replace(path)  # atomic: no half-written chunk
+            if store is not None:
+                store.write(k, out)
             return out
 
         bar = None
