@@ -34,6 +34,9 @@ from ._ground import (
 from ._ground import (
     near_fault_pulse as near_fault_pulse,
 )
+from ._isolators import (
+    AbstractFrictionPendulum as AbstractFrictionPendulum,
+)
 from ._isolators import (  # noqa: E402
     AbstractIsolator as AbstractIsolator,
 )
@@ -42,6 +45,9 @@ from ._isolators import (
 )
 from ._isolators import (
     FrictionPendulum as FrictionPendulum,
+)
+from ._isolators import (
+    IntegratedFrictionPendulum as IntegratedFrictionPendulum,
 )
 from ._isolators import (
     LinearIsolator as LinearIsolator,

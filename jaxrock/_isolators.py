@@ -160,24 +160,15 @@ class LinearIsolator(AbstractIsolator):
         return self.mass_ratio / (1.0 + self.mass_ratio)
 
 
-class FrictionPendulum(AbstractIsolator):
+class AbstractFrictionPendulum(AbstractIsolator):
     """Friction pendulum system with Bouc-Wen hysteresis, F = K u + Q z (SI).
 
     K = M g / R and Q = mu M g, with `friction` mu >= 0, `radius` R (m) > 0 and
     Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta,
     `yield_displacement` Y (m) > 0. The paper uses mu = 0.11, R = 2.24 m and
     A = 1, gamma = 0.9, beta = 0.1, eta = 2, Y = 0.5 mm. z is stiff: |z'|
-    reaches |u'| / Y.
-
-    With eta = 2 (static: it picks the model's form), z is exact in closed
-    form: along a monotone stretch of u, Y dz/du = A - c z^2 with
-    c = gamma + beta while |z| grows and beta - gamma while it shrinks, so z is
-    an explicit function of u from the stretch's start (u_r, z_r). The base
-    state is then (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after
-    which a shrinking |z| passes 0; the memory restarts at each reversal of u'
-    (an event, `condition_reversal`) or where an impact reverses u'. Without
-    the stiff z, steps follow the motion (the paper's map: 5x fewer steps).
-    Other eta: z is integrated, and the state is (u, u', z).
+    reaches |u'| / Y. `FrictionPendulum` (eta = 2) has z in closed form,
+    `IntegratedFrictionPendulum` integrates it (any eta >= 1).
     """
 
     friction: Float[Array, "..."] = parameter("friction")
@@ -189,7 +180,7 @@ class FrictionPendulum(AbstractIsolator):
     A: Float[Array, "..."] = parameter("A", default=1.0)
     gamma: Float[Array, "..."] = parameter("gamma", default=0.9)
     beta: Float[Array, "..."] = parameter("beta", default=0.1)
-    eta: float = eqx.field(default=2.0, static=True, converter=float)
+    eta: eqx.AbstractClassVar[float]
     hysteretic_state: ClassVar[bool] = True
 
     def constraints(self):
@@ -199,7 +190,6 @@ class FrictionPendulum(AbstractIsolator):
             greater_than_zero("mass_ratio", self.mass_ratio),
             greater_than_zero("yield_displacement", self.yield_displacement),
             greater_than_zero("A", self.A),
-            Constraint("eta", self.eta, lambda v: v >= 1, "finite and >= 1"),
             finite("gamma", self.gamma),
             Constraint(
                 "beta", self.beta, lambda v: self.gamma + v > 0, "with gamma + beta > 0"
@@ -213,40 +203,12 @@ class FrictionPendulum(AbstractIsolator):
             f"mass ratio {describe_values(self.mass_ratio)})"
         )
 
-    @property
-    def closed_form(self) -> bool:
-        """z in closed form (eta = 2), not integrated."""
-        return self.eta == 2.0
-
-    @property
-    def n_states(self) -> int:
-        return 5 if self.closed_form else 3
-
     def initial_state(self):
         return jnp.zeros(self.n_states, dtype=self.radius.dtype)
 
+    @abc.abstractmethod
     def hysteretic(self, state):
         """The Bouc-Wen variable z."""
-        if not self.closed_form:
-            return state[2]
-        u, u_r, z_r, w0 = state[0], state[2], state[3], state[4]
-        d = jnp.sign(u - u_r)
-        w = jnp.abs(u - u_r) / self.yield_displacement
-        zeta0 = d * z_r  # z along the direction of travel
-        a, loading, unloading = self.A, self.gamma + self.beta, self.beta - self.gamma
-        shrinking = zeta0 < 0
-        s = _solution_sine(unloading, a, jnp.minimum(w, w0))
-        unload = (zeta0 + a * s) / (1.0 + unloading * zeta0 * s)
-        # Growing: from the stretch's start, or from 0 once past w0.
-        start = jnp.where(shrinking, 0.0, zeta0)
-        # (a c > 0 while loading: tanh only)
-        s = _solution_sine(
-            loading, a, jnp.where(shrinking, jnp.maximum(w - w0, 0.0), w), True
-        )
-        load = (start + a * s) / (1.0 + loading * start * s)
-        zeta = jnp.where(shrinking & (w < w0), unload, load)
-        # Read by many kernels (the force, the conditions): computed once.
-        return computed_once(jnp.where(d == 0, z_r, d * zeta))
 
     def force(self, state):
         return GRAVITY * (
@@ -284,27 +246,62 @@ class FrictionPendulum(AbstractIsolator):
             jnp.where(dissipative, f_bound, jnp.inf),
         )
 
+    @property
+    def block_mass_fraction(self):
+        return self.mass_ratio / (1.0 + self.mass_ratio)
+
+
+class FrictionPendulum(AbstractFrictionPendulum):
+    """Friction pendulum with eta = 2, its Bouc-Wen z exact in closed form.
+
+    Along a monotone stretch of u, Y dz/du = A - c z^2 with c = gamma + beta
+    while |z| grows and beta - gamma while it shrinks, so z is an explicit
+    function of u from the stretch's start (u_r, z_r). The base state is
+    (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which a
+    shrinking |z| passes 0; the memory restarts at each reversal of u' (an
+    event, `condition_reversal`) or where an impact reverses u'. Without the
+    stiff z, steps follow the motion (the paper's map: 5x fewer steps than
+    `IntegratedFrictionPendulum`).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
+        >>> base.describe()
+        'friction pendulum (mu = 0.11, R = 2.24 m, mass ratio 0.5)'
+    """
+
+    eta: ClassVar[float] = 2.0
+    n_states: ClassVar[int] = 5
+
+    def hysteretic(self, state):
+        """The Bouc-Wen variable z, from the stretch's start (u_r, z_r)."""
+        u, u_r, z_r, w0 = state[0], state[2], state[3], state[4]
+        d = jnp.sign(u - u_r)
+        w = jnp.abs(u - u_r) / self.yield_displacement
+        zeta0 = d * z_r  # z along the direction of travel
+        a, loading, unloading = self.A, self.gamma + self.beta, self.beta - self.gamma
+        shrinking = zeta0 < 0
+        s = _solution_sine(unloading, a, jnp.minimum(w, w0))
+        unload = (zeta0 + a * s) / (1.0 + unloading * zeta0 * s)
+        # Growing: from the stretch's start, or from 0 once past w0.
+        start = jnp.where(shrinking, 0.0, zeta0)
+        # (a c > 0 while loading: tanh only)
+        s = _solution_sine(
+            loading, a, jnp.where(shrinking, jnp.maximum(w - w0, 0.0), w), True
+        )
+        load = (start + a * s) / (1.0 + loading * start * s)
+        zeta = jnp.where(shrinking & (w < w0), unload, load)
+        # Read by many kernels (the force, the conditions): computed once.
+        return computed_once(jnp.where(d == 0, z_r, d * zeta))
+
     def rates(self, state, u_ddot):
-        u_dot = state[1]
-        if self.closed_form:
-            zero = jnp.zeros_like(u_ddot)
-            return jnp.stack([u_dot, u_ddot, zero, zero, zero])
-        z = state[2]
-        abs_z = jnp.abs(z)
-        power = abs_z ** (self.eta - 1.0)  # |z|^eta = |z| power: one pow, not two
-        z_dot = (
-            self.A * u_dot
-            - self.gamma * jnp.abs(u_dot) * z * power
-            - self.beta * u_dot * abs_z * power
-        ) / self.yield_displacement
-        return jnp.stack([u_dot, u_ddot, z_dot])
+        zero = jnp.zeros_like(u_ddot)
+        return jnp.stack([state[1], u_ddot, zero, zero, zero])
 
     def at_transition(self, state, turned):
         """With z in closed form: a new stretch (u_r, z_r) = (u, z) where u'
         turns back, at a located reversal (`turned`; u' is zero there to
         rounding, of either sign) or where an impact reverses u'."""
-        if not self.closed_form:
-            return state
         u, u_dot, u_r = state[0], state[1], state[2]
         direction = jnp.sign(u - u_r)  # of the stretch so far
         back = turned | (direction * u_dot < 0)
@@ -317,11 +314,38 @@ class FrictionPendulum(AbstractIsolator):
 
     def peak_condition(self):
         # Every reversal of u' starts a new stretch, and includes the peaks.
-        return condition_reversal if self.closed_form else None
+        return condition_reversal
 
-    @property
-    def block_mass_fraction(self):
-        return self.mass_ratio / (1.0 + self.mass_ratio)
+
+class IntegratedFrictionPendulum(AbstractFrictionPendulum):
+    """Friction pendulum whose Bouc-Wen z is integrated with the motion, for
+    any exponent `eta` >= 1 (static: each value compiles once); the base state
+    is (u, u', z). Stiff (|z'| reaches |u'| / Y): prefer `FrictionPendulum`
+    where eta = 2.
+    """
+
+    eta: float = eqx.field(default=2.0, static=True, converter=float)
+    n_states: ClassVar[int] = 3
+
+    def constraints(self):
+        return super().constraints() + [
+            Constraint("eta", self.eta, lambda v: v >= 1, "finite and >= 1")
+        ]
+
+    def hysteretic(self, state):
+        return state[2]
+
+    def rates(self, state, u_ddot):
+        u_dot = state[1]
+        z = state[2]
+        abs_z = jnp.abs(z)
+        power = abs_z ** (self.eta - 1.0)  # |z|^eta = |z| power: one pow, not two
+        z_dot = (
+            self.A * u_dot
+            - self.gamma * jnp.abs(u_dot) * z * power
+            - self.beta * u_dot * abs_z * power
+        ) / self.yield_displacement
+        return jnp.stack([u_dot, u_ddot, z_dot])
 
 
 def _solution_sine(c, a, w, positive=False):

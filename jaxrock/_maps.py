@@ -20,7 +20,7 @@ from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion, Record
 from ._isolators import AbstractIsolator
 from ._misc import as_float, grid_axis, is_count, positive
-from ._model import check_base_and_motion, initial_carry, response
+from ._model import Carry, check_base_and_motion, initial_carry, response
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
@@ -52,6 +52,22 @@ def _where_lanes(mask, new, old):
         new,
         old,
     )
+
+
+class _Lanes(eqx.Module):
+    """The state of a chunk's loop: each lane's carry, cell (n: idle) and
+    inputs, the queue's next cell, the results written so far (one per cell),
+    the lanes that finished in the last steps, and the lane-steps executed and
+    those that advanced an analysis."""
+
+    carry: Carry
+    cell: jax.Array
+    queue: jax.Array
+    out: Carry
+    executed: jax.Array
+    useful: jax.Array
+    per_lane: tuple
+    finished: jax.Array
 
 
 @eqx.filter_jit
@@ -126,52 +142,72 @@ def _map_chunk(
     c0 = start(cell0, per_lane0)
     out = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0)
 
-    def steps(c, cell, per_lane, executed, useful):
+    def steps(state: _Lanes) -> _Lanes:
         """Step every lane until one or more finish: the lanes whose analysis is
         done, or with `pilot` whose shared phase ends (these keep their carry
         from before that attempt). No cell changes here, so the lanes' inputs
         are gathered once (in `refill`), not at every step."""
-        block, lane_base, lane_motion = inputs(per_lane)
+        block, lane_base, lane_motion = inputs(state.per_lane)
 
-        def body(state):
-            c, _, executed, useful = state
-            new, a = flat_step(c, block, lane_base, lane_motion, duration, opts, axes)
-            taken = new.steps - c.steps
+        def body(s: _Lanes) -> _Lanes:
+            new, a = flat_step(
+                s.carry, block, lane_base, lane_motion, duration, opts, axes
+            )
+            taken = new.steps - s.carry.steps
             ended = new.done | (new.segments >= opts.max_segments)
             ended = ended | closed_form(new, block, lane_motion)
             leaves = new.rocked | (a.t1 >= lane_motion.end_time)  # the shared phase
-            finished = (cell < n) & (ended | (pilot & leaves))
-            new = _where_lanes(pilot & finished, c, new)
-            return (
-                new,
-                finished,
-                executed + jnp.max(taken) * width,
-                useful + jnp.sum(taken),
+            finished = (s.cell < n) & (ended | (pilot & leaves))
+            return eqx.tree_at(
+                lambda s: (s.carry, s.finished, s.executed, s.useful),
+                s,
+                (
+                    _where_lanes(pilot & finished, s.carry, new),
+                    finished,
+                    s.executed + jnp.max(taken) * width,
+                    s.useful + jnp.sum(taken),
+                ),
             )
 
-        state = (c, jnp.zeros_like(cell, dtype=bool), executed, useful)
-        return jax.lax.while_loop(lambda s: ~jnp.any(s[1]), body, state)
+        state = eqx.tree_at(lambda s: s.finished, state, jnp.zeros_like(state.finished))
+        return jax.lax.while_loop(lambda s: ~jnp.any(s.finished), body, state)
 
-    def refill(state):
+    def refill(state: _Lanes) -> _Lanes:
         """Steps until lanes finish; they write their results and take the
         queue's next cells."""
-        c, cell, queue, out, executed, useful, per_lane = state
-        c, finished, executed, useful = steps(c, cell, per_lane, executed, useful)
+        state = steps(state)
+        finished, cell, c = state.finished, state.cell, state.carry
         index = jnp.where(finished, cell, n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
-            lambda o, r: o.at[index].set(r, mode="drop"), out, c
+            lambda o, r: o.at[index].set(r, mode="drop"), state.out, c
         )
-        cell = jnp.where(finished, queue + jnp.cumsum(finished) - 1, cell)
+        cell = jnp.where(finished, state.queue + jnp.cumsum(finished) - 1, cell)
         cell = jnp.where(finished & (cell >= count), n, cell)
         fresh = gather(cell)
-        c = _where_lanes(finished, start(cell, fresh), c)
-        per_lane = _where_lanes(finished, fresh, per_lane)
-        return c, cell, queue + jnp.sum(finished), out, executed, useful, per_lane
+        return _Lanes(
+            carry=_where_lanes(finished, start(cell, fresh), c),
+            cell=cell,
+            queue=state.queue + jnp.sum(finished),
+            out=out,
+            executed=state.executed,
+            useful=state.useful,
+            per_lane=_where_lanes(finished, fresh, state.per_lane),
+            finished=finished,
+        )
 
     zero = jnp.asarray(0)
-    state = (c0, cell0, jnp.asarray(width), out, zero, zero, per_lane0)
-    state = jax.lax.while_loop(lambda s: jnp.any(s[1] < n), refill, state)
-    carries, executed, useful = state[3:6]
+    state = _Lanes(
+        carry=c0,
+        cell=cell0,
+        queue=jnp.asarray(width),
+        out=out,
+        executed=zero,
+        useful=zero,
+        per_lane=per_lane0,
+        finished=jnp.zeros_like(cell0, dtype=bool),
+    )
+    state = jax.lax.while_loop(lambda s: jnp.any(s.cell < n), refill, state)
+    carries, executed, useful = state.out, state.executed, state.useful
     blocks = Block(slenderness, size)
     final = carries
     if closed:
@@ -362,6 +398,142 @@ def _check_fits_in_memory(n: int) -> None:
         )
 
 
+class _Grid:
+    """The cells of a map and their pilots.
+
+    Cells run over (base batch, motion batch, slenderness, size) in C order;
+    one pilot per (base, motion, slenderness) runs the shared translation phase
+    (see `_map_chunk`). `inputs` gives the per-cell arrays of chosen cells."""
+
+    def __init__(self, lam, r, base, motion):
+        self.lam, self.r, self.base, self.motion = lam, r, base, motion
+        self.record = isinstance(motion, Record)  # one motion shared by all cells
+        self.base_shape = _batch_shape(base)
+        self.motion_shape = () if self.record else _batch_shape(motion)
+        self.shape = self.base_shape + self.motion_shape + (lam.size, r.size)
+        self.n = int(np.prod(self.shape))
+        n_base, n_motion = (
+            int(np.prod(self.base_shape)),
+            int(np.prod(self.motion_shape)),
+        )
+        ib, im, il, ir = np.unravel_index(
+            np.arange(self.n), (n_base, n_motion, lam.size, r.size)
+        )
+        self.pilots = n_base * n_motion * lam.size
+        self.pilot_of_cell = (ib * n_motion + im) * lam.size + il
+        pb, pm, pl = np.unravel_index(
+            np.arange(self.pilots), (n_base, n_motion, lam.size)
+        )
+        self.pilot_inputs = self.inputs(pb, pm, pl, np.zeros_like(pl))
+        self.cell_inputs = self.inputs(ib, im, il, ir)
+
+    def inputs(self, ib, im, il, ir):
+        """(slenderness, size, base, motion) of the cells (ib, im, il, ir) (1-D
+        index arrays); the motion None for a record (shared)."""
+        return (
+            self.lam[il],
+            self.r[ir],
+            _cells_of(self.base, self.base_shape, ib),
+            None if self.record else _cells_of(self.motion, self.motion_shape, im),
+        )
+
+    def blank_carries(self):
+        """Zero carries of every pilot (the `shared` input of the pilot pass)."""
+        first = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)  # noqa: E731
+        _, _, base, motion = self.pilot_inputs
+        proto = jax.eval_shape(
+            initial_carry,
+            Block(self.lam[0], self.r[0]),
+            first(base),
+            self.motion if self.record else first(motion),
+        )
+        return jax.tree_util.tree_map(
+            lambda s: np.zeros((self.pilots,) + s.shape, s.dtype), proto
+        )
+
+    def store_key(self, duration, chunk, opts) -> str:
+        """What identifies the map's chunks in a store."""
+        return json.dumps(
+            dict(
+                slenderness=self.lam.tolist(),
+                size=self.r.tolist(),
+                base=self.base.describe(),
+                motion=self.motion.describe(),
+                base_leaves=_leaf_digest(self.base),
+                # static fields
+                base_form=str(jax.tree_util.tree_structure(self.base)),
+                motion_leaves=_leaf_digest(self.motion),
+                duration=float(duration),
+                chunk=chunk,
+                options=_leaf_digest(opts),
+                solver=repr(opts.solver),
+                max_segments=opts.max_segments,
+                layout="cells dealt by start",  # chunks list their cells
+            )
+        )
+
+
+class _ChunkRunner:
+    """Runs chunks of cells through `_map_chunk` on the local devices.
+
+    A chunk's cells are padded to `padded` (the last cell repeated, never
+    analysed) so that maps of other sizes reuse a handful of compiles. Chunks
+    go round-robin to the local devices (GPUs, or several CPU devices with
+    XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread per
+    CPU core: XLA releases the GIL, so chunks run at once.
+    """
+
+    def __init__(self, grid: _Grid, duration, opts, padded: int):
+        self.grid, self.opts, self.padded = grid, opts, padded
+        self.devices = jax.local_devices()
+        self.on_device = [
+            jax.device_put((grid.motion, duration), d) for d in self.devices
+        ]
+
+    def args(self, k, index, inputs, shared, pilot):
+        """The arguments of `_map_chunk` for chunk k, the cells `index` of
+        `inputs` and `shared`, on the chunk's device."""
+        d, count = k % len(self.devices), index.size
+        take = np.pad(index, (0, self.padded - count), mode="edge")
+
+        def part(tree):
+            tree = jax.tree_util.tree_map(lambda x: np.asarray(x)[take], tree)
+            return jax.device_put(tree, self.devices[d])
+
+        d_motion, d_duration = self.on_device[d]
+        lam_k, r_k, base_k, motion_k = inputs
+        m = d_motion if self.grid.record else part(motion_k)
+        args = (part(lam_k), part(r_k), part(base_k), m, part(shared), d_duration)
+        flags = jax.device_put((np.asarray(count), np.asarray(pilot)), self.devices[d])
+        return args + (self.opts, flags[0], flags[1])
+
+    def compute(self, k, index, inputs, shared, pilot):
+        """Chunk k: its responses and carries (NumPy), executed and useful steps."""
+        args, count = self.args(k, index, inputs, shared, pilot), index.size
+        responses, carries, executed, useful = jax.device_get(
+            _map_chunk(*args, LANE_WIDTH)
+        )
+        _COMPILED.add(_signature(args))
+        trim = lambda tree: jax.tree_util.tree_map(lambda x: x[:count], tree)  # noqa: E731
+        return trim(responses), trim(carries), int(executed), int(useful)
+
+    def run_all(self, ks, fn, pool, probe, bar=None):
+        """fn(k) for every k, in threads; unless the loop is compiled already
+        (`probe`: the arguments of a chunk like these), the first runs alone
+        (it compiles, the others then reuse the compile)."""
+        out = {}
+        if ks and _signature(self.args(*probe)) not in _COMPILED:
+            out[ks[0]] = fn(ks[0])
+            if bar is not None:
+                bar.update(1)
+        rest = ks[len(out) :]
+        for k, result in zip(rest, pool.map(fn, rest)):
+            out[k] = result
+            if bar is not None:
+                bar.update(1)
+        return out
+
+
 def behavior_map(
     slenderness,
     size,
@@ -408,61 +580,28 @@ def behavior_map(
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
     if isinstance(motion, Record) and motion.samples.ndim != 1:
         raise ValueError("a batch of records is not supported: map them one by one")
-    base_shape = _batch_shape(base)
-    motion_shape = () if isinstance(motion, Record) else _batch_shape(motion)
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
     chunk_size = _chunk_size(chunk_size)
     opts = SolverOptions(
-        rtol,
-        atol,
-        MAX_STEPS,
-        max_segments,
-        rest_tolerance,
-        solver or diffrax.Tsit5(),
+        rtol, atol, MAX_STEPS, max_segments, rest_tolerance, solver or diffrax.Tsit5()
     )
-
-    shape = base_shape + motion_shape + (lam.size, r.size)
-    n = int(np.prod(shape))
+    grid = _Grid(lam, r, base, motion)
+    n = grid.n
     _check_fits_in_memory(n)
     chunk = n if chunk_size is None else min(chunk_size, n)
-    # Chunks are padded to a power of two (at most `chunk_size`) with cells that
-    # are never analysed: maps of other sizes reuse a handful of compiles.
-    # Small maps all take one chunk shape, that of a full set of lanes (padding
-    # costs nothing but idle lanes; a compile costs seconds).
+    # Chunks are padded to a power of two (at most `chunk_size`): maps of
+    # other sizes reuse a handful of compiles. Small maps all take one chunk
+    # shape, that of a full set of lanes (padding costs nothing but idle
+    # lanes; a compile costs seconds).
     padded = max(1 << (chunk - 1).bit_length(), LANE_WIDTH)
     padded = padded if chunk_size is None else min(padded, chunk_size)
-    record = isinstance(motion, Record)
-    n_base, n_motion = int(np.prod(base_shape)), int(np.prod(motion_shape))
-
-    def cells(ib, im, il, ir):
-        """The inputs of the cells (ib, im, il, ir) (1-D index arrays)."""
-        return (
-            lam[il],
-            r[ir],
-            _cells_of(base, base_shape, ib),
-            None if record else _cells_of(motion, motion_shape, im),
-        )
-
-    ib, im, il, ir = np.unravel_index(
-        np.arange(n), (n_base, n_motion, lam.size, r.size)
-    )
-    # One pilot per base, motion and slenderness runs the shared translation.
-    pilots = n_base * n_motion * lam.size
-    pilot_of_cell = (ib * n_motion + im) * lam.size + il
-    pb, pm, pl = np.unravel_index(np.arange(pilots), (n_base, n_motion, lam.size))
-    pilot_inputs = cells(pb, pm, pl, np.zeros_like(pl))
-    cell_inputs = cells(ib, im, il, ir)
     chunks = -(-n // chunk)
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
-    # Chunks go round-robin to the local devices (GPUs, or several CPU devices
-    # with XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread
-    # per CPU core: XLA releases the GIL, so chunks run at once.
-    devices = jax.local_devices()
-    on_device = [jax.device_put((motion, duration), d) for d in devices]
+    runner = _ChunkRunner(grid, duration, opts, padded)
 
     processes, me = jax.process_count(), jax.process_index()
     if processes > 1 and store is None:
@@ -471,98 +610,32 @@ def behavior_map(
             "`store=DIR` on a file system all processes share"
         )
     if store is not None:
-        key = json.dumps(
-            dict(
-                slenderness=lam.tolist(),
-                size=r.tolist(),
-                base=base.describe(),
-                motion=motion.describe(),
-                base_leaves=_leaf_digest(base),
-                base_form=str(jax.tree_util.tree_structure(base)),  # static fields
-                motion_leaves=_leaf_digest(motion),
-                duration=float(duration),
-                chunk=chunk,
-                options=_leaf_digest(opts),
-                solver=repr(opts.solver),
-                max_segments=opts.max_segments,
-                layout="cells dealt by start",  # chunks list their cells
-            )
-        )
+        key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
 
-    def chunk_args(k, index, inputs, shared, pilot):
-        """The arguments of `_map_chunk` for chunk k, the cells `index` of
-        `inputs` and `shared`, on the chunk's device."""
-        d, count = k % len(devices), index.size
-
-        def pad(x):  # this chunk's cells, the last one repeated up to `padded`
-            return np.asarray(x)[np.pad(index, (0, padded - count), mode="edge")]
-
-        def part(tree):
-            return jax.device_put(jax.tree_util.tree_map(pad, tree), devices[d])
-
-        d_motion, d_duration = on_device[d]
-        lam_k, r_k, base_k, motion_k = inputs
-        m = d_motion if record else part(motion_k)
-        args = (part(lam_k), part(r_k), part(base_k), m, part(shared), d_duration)
-        flags = jax.device_put((np.asarray(count), np.asarray(pilot)), devices[d])
-        return args + (opts, flags[0], flags[1])
-
-    def compute(k, index, inputs, shared, pilot):
-        """Chunk k: its responses and carries (NumPy), executed and useful steps."""
-        args, count = chunk_args(k, index, inputs, shared, pilot), index.size
-        responses, carries, executed, useful = jax.device_get(
-            _map_chunk(*args, LANE_WIDTH)
-        )
-        _COMPILED.add(_signature(args))
-        trim = lambda tree: jax.tree_util.tree_map(lambda x: x[:count], tree)  # noqa: E731
-        return trim(responses), trim(carries), int(executed), int(useful)
-
-    def run_all(ks, fn, pool, bar):
-        """fn(k) for every k, in threads; unless the loop is compiled already,
-        the first runs alone (it compiles, the others then reuse the compile)."""
-        out = {}
-        if ks and _signature(chunk_args(*probe)) not in _COMPILED:
-            out[ks[0]] = fn(ks[0])
-            if bar is not None:
-                bar.update(1)
-        rest = ks[len(out) :]
-        for k, result in zip(rest, pool.map(fn, rest)):
-            out[k] = result
-            if bar is not None:
-                bar.update(1)
-        return out
-
-    # Pass 1: the pilots, from t = 0 to where their cells part ways.
-    proto = jax.eval_shape(
-        initial_carry,
-        Block(lam[0], r[0]),
-        jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[2]),
-        motion if record else jax.tree_util.tree_map(lambda x: x[0], pilot_inputs[3]),
-    )
-    blank = jax.tree_util.tree_map(
-        lambda s: np.zeros((pilots,) + s.shape, s.dtype), proto
-    )
+    blank = grid.blank_carries()
     pilot_chunks = [
-        np.arange(i, min(i + chunk, pilots)) for i in range(0, pilots, chunk)
+        np.arange(i, min(i + chunk, grid.pilots)) for i in range(0, grid.pilots, chunk)
     ]
-    probe = (0, pilot_chunks[0], pilot_inputs, blank, True)
+    probe = (0, pilot_chunks[0], grid.pilot_inputs, blank, True)
     mine = [k for k in range(chunks) if k % processes == me]
-    stored = lambda k: store is not None and store.has(k)  # noqa: E731
 
     t = time.perf_counter()
-    with ThreadPoolExecutor(max(len(devices), os.cpu_count() or 1)) as pool:
+    with ThreadPoolExecutor(max(len(runner.devices), os.cpu_count() or 1)) as pool:
         useful = executed = 0
-        if not all(stored(k) for k in mine):
-            done = run_all(
+        if store is None or not all(store.has(k) for k in mine):
+            # Pass 1: the pilots, from t = 0 to where their cells part ways.
+            done = runner.run_all(
                 list(range(len(pilot_chunks))),
-                lambda k: compute(k, pilot_chunks[k], pilot_inputs, blank, True),
+                lambda k: runner.compute(
+                    k, pilot_chunks[k], grid.pilot_inputs, blank, True
+                ),
                 pool,
-                None,
+                probe,
             )
             carries = [done[k][1] for k in range(len(pilot_chunks))]
             carries = jax.tree_util.tree_map(lambda *x: np.concatenate(x), *carries)
-            starts = jax.tree_util.tree_map(lambda x: x[pilot_of_cell], carries)
+            starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
             useful = sum(d[3] for d in done.values())
             executed = sum(d[2] for d in done.values())
             # Cells by start time (the most work first), dealt to the chunks in
@@ -574,8 +647,8 @@ def behavior_map(
                 order = np.argsort(starts.t, kind="stable")
 
         def run_chunk(k):
-            """Chunk k's results: its cells ("index"), their `_FIELDS` arrays,
-            and the lane-steps "executed" and "useful"."""
+            """Pass 2, chunk k: its cells ("index"), their `_FIELDS` arrays, and
+            the lane-steps "executed" and "useful"."""
             if store is not None:
                 if k % processes != me:  # another process's
                     store.wait_for(k)
@@ -583,8 +656,8 @@ def behavior_map(
                 if stored_chunk is not None:
                     return stored_chunk
             index = order[k::chunks]
-            responses, _, executed, useful = compute(
-                k, index, cell_inputs, starts, False
+            responses, _, executed, useful = runner.compute(
+                k, index, grid.cell_inputs, starts, False
             )
             out = {f: np.asarray(getattr(responses, f)) for f in _FIELDS}
             out |= {"index": index, "executed": executed, "useful": useful}
@@ -599,29 +672,34 @@ def behavior_map(
             bar = tqdm(total=chunks, desc="behavior map", unit="chunk")
         # Other processes' chunks (read from the store) come last.
         ks = sorted(range(chunks), key=lambda k: (k % processes != me, k))
-        results = list(run_all(ks, run_chunk, pool, bar).values())
+        results = list(runner.run_all(ks, run_chunk, pool, probe, bar).values())
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - t
+    return _assemble(grid, results, seconds, useful, executed)
+
+
+def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:
+    """The map from its chunks' results, in grid order."""
     index = np.concatenate([c["index"] for c in results])
-    if not np.array_equal(np.sort(index), np.arange(n)):
+    if not np.array_equal(np.sort(index), np.arange(grid.n)):
         raise RuntimeError(
             "the chunks do not hold every cell exactly once (a store written by "
             "processes that dealt the cells differently?)"
         )
-    cell_order = np.argsort(index)  # the results in grid order
+    cell_order = np.argsort(index)
     fields = {
-        f: np.concatenate([c[f] for c in results])[cell_order].reshape(shape)
+        f: np.concatenate([c[f] for c in results])[cell_order].reshape(grid.shape)
         for f in _FIELDS
     }
     useful += sum(int(c["useful"]) for c in results)
     executed += sum(int(c["executed"]) for c in results)
     return BehaviorMap(
-        slenderness=lam,
-        size=r,
+        slenderness=grid.lam,
+        size=grid.r,
         **fields,
-        base=base.describe(),
-        motion=motion.describe(),
+        base=grid.base.describe(),
+        motion=grid.motion.describe(),
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
     )

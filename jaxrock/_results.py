@@ -130,7 +130,7 @@ class Response(eqx.Module):
     when overturned). max_base_displacement: max |u| (m), 0 on a fixed base.
     impacts: number of impacts. uplift_time: first uplift (s), NaN if none.
     status: `Status` code. steps, segments: solver steps and loop segments.
-    history: `History` when asked for, else None.
+    history: `History` with `history=True`, else None.
     """
 
     outcome: Int[Array, "..."]

@@ -105,7 +105,7 @@ def _version() -> str:
 
 
 class _Version(argparse.Action):
-    """--version: the metadata is read only when asked for."""
+    """--version: the metadata is read only when requested."""
 
     def __init__(self, option_strings, dest, **kwargs):
         super().__init__(

@@ -30,7 +30,7 @@ def _rising(base):
 def test_unrolled_step_equals_diffrax_step(solver):
     """Same y1, error estimate and dense output (so the same interpolant), on a
     rocking block on a friction pendulum mid-pulse (all five states moving)."""
-    base = jr.FrictionPendulum(0.11, 2.24, 0.5, eta=3.0)  # z integrated
+    base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=3.0)  # z integrated
     args = _rising(base)
     y0 = (jnp.asarray(0.01), jnp.asarray(0.2), jnp.array([0.01, 0.3, 0.5]))
     t0, t1 = jnp.asarray(0.7), jnp.asarray(0.7001)

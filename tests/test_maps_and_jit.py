@@ -56,8 +56,8 @@ def test_map_equals_simulate_cell_by_cell(linear_map):
             np.testing.assert_allclose(
                 linear_map.max_rotation[i, j], float(one.max_rotation), rtol=1e-6
             )
-            # A peak of |u| is an event in both (before session 7 the flat
-            # loop could step over one: 4 of these cells were up to 1.2e-3 low).
+            # A peak of |u| is an event in both: max |u| is an exact extremum
+            # (a sampled one is up to 1.2e-3 low on 4 of these cells).
             np.testing.assert_allclose(
                 linear_map.max_base_displacement[i, j],
                 float(one.max_base_displacement),

@@ -113,8 +113,8 @@ def test_friction_pendulum_with_z_integrated_matches_reference(case):
     """eta != 2: z is integrated (Bouc-Wen's ODE), not in closed form."""
     name, lam, r, scale = case
     motion, (acc, t_end, max_step) = _pulse(name, scale)
-    base = jr.FrictionPendulum(0.11, 2.24, 0.5, eta=3.0)
-    assert not base.closed_form
+    base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=3.0)
+    assert base.n_states == 3
     ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
     ref_base = ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 3.0)
     theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)

@@ -20,7 +20,12 @@ def test_bouc_wen_stiffness_drives_the_step_count_and_limits_are_reported():
     steps = {}
     for eta in (2.0, 3.0):
         for y in (5e-4, 5e-5):
-            base = jr.FrictionPendulum(0.11, 2.24, 0.5, yield_displacement=y, eta=eta)
+            if eta == 2.0:  # z in closed form
+                base = jr.FrictionPendulum(0.11, 2.24, 0.5, yield_displacement=y)
+            else:
+                base = jr.IntegratedFrictionPendulum(
+                    0.11, 2.24, 0.5, yield_displacement=y, eta=eta
+                )
             r = jr.simulate(block, base, PULSE)
             assert int(r.status) == jr.Status.SUCCESS
             steps[eta, y] = int(r.steps)
@@ -28,7 +33,10 @@ def test_bouc_wen_stiffness_drives_the_step_count_and_limits_are_reported():
     assert steps[2.0, 5e-5] < 1.5 * steps[2.0, 5e-4]
     assert 3 * steps[2.0, 5e-4] < steps[3.0, 5e-4]
     capped = jr.simulate(
-        block, jr.FrictionPendulum(0.11, 2.24, 0.5, eta=3.0), PULSE, max_steps=200
+        block,
+        jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=3.0),
+        PULSE,
+        max_steps=200,
     )
     assert int(capped.status) == jr.Status.MAX_STEPS
     assert not bool(capped.ok) and "not converged" in capped.summary()
