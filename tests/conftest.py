@@ -18,4 +18,22 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-import jaxrock  # noqa: E402, F401
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import jaxrock as jr  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def linear_map():
+    """The San Fernando map of a small grid on the paper's linear isolator, in
+    chunks of 4 (the map tests, the store tests and the CLI compare with it)."""
+    return jr.behavior_map(
+        np.array([1.5, 2.5, 3.5, 5.0, 6.5]),
+        np.array([0.3, 1.0, 2.5]),
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        jr.near_fault_pulse("San Fernando PCD/SN"),
+        chunk_size=4,
+        progress=False,
+    )

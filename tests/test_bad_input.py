@@ -2,7 +2,6 @@
 or, inside compiled code, a status of its own and NaN results; never a
 plausible number."""
 
-import json
 import math
 
 import equinox as eqx
@@ -226,58 +225,3 @@ def test_fragility_names_a_zero_amplitude_motion():
 
 
 # -- BehaviorMap.load ------------------------------------------------------------
-
-
-def _saved_map(tmp_path, **changes):
-    arrays = dict(
-        slenderness=np.array([2.0, 3.0]),
-        size=np.array([1.0]),
-        outcome=np.zeros((2, 1), dtype=int),
-        max_rotation=np.zeros((2, 1)),
-        max_base_displacement=np.zeros((2, 1)),
-        impacts=np.zeros((2, 1), dtype=int),
-        uplift_time=np.full((2, 1), np.nan),
-        status=np.zeros((2, 1), dtype=int),
-        steps=np.zeros((2, 1), dtype=int),
-        segments=np.zeros((2, 1), dtype=int),
-    )
-    arrays.update(changes)
-    meta = json.dumps(dict(base="fixed base", motion="m", seconds=0.0))
-    path = tmp_path / "map.npz"
-    np.savez(path, metadata=np.array(meta), **arrays)
-    return path
-
-
-def test_load_reads_a_consistent_map(tmp_path):
-    bm = jr.BehaviorMap.load(_saved_map(tmp_path))
-    assert bm.outcome.shape == (2, 1) and bm.counts()["no_rocking"] == 2
-
-
-@pytest.mark.parametrize(
-    "changes, message",
-    [
-        (dict(outcome=np.full((2, 1), 7)), "outcome holds codes"),
-        (dict(outcome=np.full((2, 1), -1)), "outcome holds codes"),
-        (dict(status=np.full((2, 1), 9)), "status holds codes"),
-        (dict(max_rotation=np.zeros((3, 1))), "max_rotation has shape"),
-        (dict(outcome=np.zeros((2, 2), dtype=int)), "outcome has shape"),
-    ],
-)
-def test_load_refuses_inconsistent_arrays(tmp_path, changes, message):
-    with pytest.raises(ValueError, match=message):
-        jr.BehaviorMap.load(_saved_map(tmp_path, **changes))
-
-
-def test_load_refuses_corrupt_truncated_and_foreign_files(tmp_path):
-    good = _saved_map(tmp_path).read_bytes()
-    truncated = tmp_path / "truncated.npz"
-    truncated.write_bytes(good[: len(good) // 2])
-    garbage = tmp_path / "garbage.npz"
-    garbage.write_bytes(b"not a zip file at all")
-    foreign = tmp_path / "foreign.npz"
-    np.savez(foreign, x=np.arange(3))
-    bad_meta = tmp_path / "bad_meta.npz"
-    np.savez(bad_meta, metadata=np.array("{not json"), x=np.arange(3))
-    for path in (truncated, garbage, foreign, bad_meta, tmp_path / "missing.npz"):
-        with pytest.raises(ValueError, match="not a behavior map"):
-            jr.BehaviorMap.load(path)

@@ -303,3 +303,78 @@ def test_console_script(tmp_path):
     )
     assert done.returncode == 2
     assert "--out" in _one_error_line(done.stderr)
+
+
+# -- the commands, computing --------------------------------------------------
+
+
+def test_cli_map_and_simulate(tmp_path, capsys):
+    out = tmp_path / "bm.png"
+    assert (
+        main(["map", "--slenderness", "2:6:3", "--size", "0.5:2:2", "--out", str(out)])
+        == 0
+    )
+    assert out.stat().st_size > 10_000
+    assert (tmp_path / "bm_FixedBase.npz").exists()
+    assert (tmp_path / "bm_LinearIsolator.npz").exists()
+    text = capsys.readouterr().out
+    assert "6 analyses" in text
+    png = tmp_path / "one.png"
+    assert (
+        main(
+            [
+                "simulate",
+                "--slenderness",
+                "4",
+                "--size",
+                "1",
+                "--base",
+                "fps",
+                "--out",
+                str(png),
+            ]
+        )
+        == 0
+    )
+    assert png.stat().st_size > 10_000
+
+
+def test_cli_fragility(tmp_path, capsys):
+    out = tmp_path / "f.png"
+    assert (
+        main(
+            ["fragility", "--base", "fixed", "--scales", "0.2:2:12", "--out", str(out)]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 10_000
+    assert "overturned" in capsys.readouterr().out
+
+
+def test_cli_fragility_of_one_scale(tmp_path, capsys):
+    """A batch of exactly one pulse keeps its axis through the map and the fit."""
+    out = tmp_path / "one.png"
+    argv = ["fragility", "--base", "fixed", "--scales", "1:1:1", "--out", str(out)]
+    assert main(argv) == 0
+    assert out.exists()
+    assert "1 analyses" in capsys.readouterr().out
+
+
+def test_cli_spectrum(tmp_path, capsys):
+    out = tmp_path / "s.png"
+    assert (
+        main(
+            [
+                "spectrum",
+                "--frequency-ratio",
+                "1:4:3",
+                "--amplitude-ratio",
+                "1:5:5",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 10_000
+    assert "minimum" in capsys.readouterr().out

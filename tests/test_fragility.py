@@ -5,7 +5,6 @@ import pytest
 from scipy.stats import norm
 
 import jaxrock as jr
-from jaxrock.cli import main
 
 
 def test_lognormal_fit_recovers_known_parameters():
@@ -41,24 +40,3 @@ def test_fragility_of_a_block_under_scaled_pulse():
     assert np.all(frag.status == jr.Status.SUCCESS)
     curve = frag.probability(np.array([0.5, 5.0]))
     assert curve[0] < 0.5 < curve[1]
-
-
-def test_cli_fragility(tmp_path, capsys):
-    out = tmp_path / "f.png"
-    assert (
-        main(
-            ["fragility", "--base", "fixed", "--scales", "0.2:2:12", "--out", str(out)]
-        )
-        == 0
-    )
-    assert out.stat().st_size > 10_000
-    assert "overturned" in capsys.readouterr().out
-
-
-def test_cli_fragility_of_one_scale(tmp_path, capsys):
-    """A batch of exactly one pulse keeps its axis through the map and the fit."""
-    out = tmp_path / "one.png"
-    argv = ["fragility", "--base", "fixed", "--scales", "1:1:1", "--out", str(out)]
-    assert main(argv) == 0
-    assert out.exists()
-    assert "1 analyses" in capsys.readouterr().out

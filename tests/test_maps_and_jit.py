@@ -8,7 +8,6 @@ import reference as ref
 
 import jaxrock as jr
 from jaxrock import _maps, _model, _simulate
-from jaxrock.cli import main
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
@@ -28,18 +27,6 @@ def test_new_parameters_do_not_recompile():
     )
     jr.simulate(jr.Block(2.0, 3.0), base, jr.MPPulse(0.5, 1.0, 2.0, 45.0, t0=1.0))
     assert run._cache_size() == before
-
-
-@pytest.fixture(scope="module")
-def linear_map():
-    return jr.behavior_map(
-        LAM,
-        SIZE,
-        jr.LinearIsolator(2.0, 0.35, 0.5),
-        PULSE,
-        chunk_size=4,
-        progress=False,
-    )
 
 
 def test_map_equals_simulate_cell_by_cell(linear_map):
@@ -212,46 +199,6 @@ def test_flat_loop_locates_small_apexes_like_simulate():
     assert bm.impacts[0, 4] > 10
 
 
-def test_save_load_roundtrip(linear_map, tmp_path):
-    linear_map.save(tmp_path / "m.npz")
-    back = jr.BehaviorMap.load(tmp_path / "m.npz")
-    for k in ("slenderness", "size", "outcome", "max_rotation", "uplift_time"):
-        np.testing.assert_array_equal(getattr(back, k), getattr(linear_map, k))
-    assert back.base == linear_map.base and back.motion == linear_map.motion
-    assert "rocking" in linear_map.summary()
-
-
-def test_cli_map_and_simulate(tmp_path, capsys):
-    out = tmp_path / "bm.png"
-    assert (
-        main(["map", "--slenderness", "2:6:3", "--size", "0.5:2:2", "--out", str(out)])
-        == 0
-    )
-    assert out.stat().st_size > 10_000
-    assert (tmp_path / "bm_FixedBase.npz").exists()
-    assert (tmp_path / "bm_LinearIsolator.npz").exists()
-    text = capsys.readouterr().out
-    assert "6 analyses" in text
-    png = tmp_path / "one.png"
-    assert (
-        main(
-            [
-                "simulate",
-                "--slenderness",
-                "4",
-                "--size",
-                "1",
-                "--base",
-                "fps",
-                "--out",
-                str(png),
-            ]
-        )
-        == 0
-    )
-    assert png.stat().st_size > 10_000
-
-
 def test_ensembles_add_leading_axes(linear_map):
     bases = jr.LinearIsolator(period=np.array([1.5, 2.0]), damping=0.35, mass_ratio=0.5)
     bm = jr.behavior_map(LAM, SIZE, bases, PULSE, chunk_size=4)
@@ -266,58 +213,6 @@ def test_ensembles_add_leading_axes(linear_map):
     assert bm.outcome.shape == (2, 5, 3)
     np.testing.assert_array_equal(bm.outcome[1], linear_map.outcome)
     assert np.all(bm.outcome[0] <= bm.outcome[1])  # a weaker pulse does no more harm
-
-
-def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
-    base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    first = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    chunks = sorted(tmp_path.glob("chunk_*.npz"))
-    assert len(chunks) == 4  # 15 cells in chunks of 4
-    chunks[2].unlink()  # as if interrupted before the third chunk was written
-    calls = []
-    original = _maps._map_chunk
-
-    def counting(*args):
-        calls.append(bool(args[-2]))  # pilot pass or not
-        return original(*args)
-
-    monkeypatch.setattr(_maps, "_map_chunk", counting)
-    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    assert calls.count(False) == 1  # the pilots rerun (they are not stored)
-    for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
-        np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
-    np.testing.assert_allclose(first.max_rotation, linear_map.max_rotation, rtol=1e-9)
-    with pytest.raises(ValueError, match="another map"):
-        jr.behavior_map(
-            LAM,
-            SIZE,
-            jr.LinearIsolator(2.5, 0.35, 0.5),
-            PULSE,
-            chunk_size=4,
-            store=tmp_path,
-        )
-
-
-def test_store_refuses_another_maps_chunks_without_its_manifest(tmp_path):
-    """Each chunk carries its map's key: with the manifest gone, a map of
-    another pulse into the same store is refused, not mixed in."""
-    base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    (tmp_path / "manifest.json").unlink()
-    other = jr.near_fault_pulse("Northridge JFA/SN")
-    with pytest.raises(ValueError, match="another map"):
-        jr.behavior_map(LAM, SIZE, base, other, chunk_size=4, store=tmp_path)
-
-
-def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
-    base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    chunk = sorted(tmp_path.glob("chunk_*.npz"))[1]
-    chunk.write_bytes(chunk.read_bytes()[:100])
-    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    for k in ("outcome", "impacts", "status", "max_rotation"):
-        np.testing.assert_array_equal(getattr(again, k), getattr(linear_map, k))
-    assert chunk.stat().st_size > 100  # written again, whole
 
 
 def test_a_batch_of_one_isolator_keeps_its_axis(linear_map):

@@ -7,7 +7,6 @@ import pytest
 import reference as ref
 
 import jaxrock as jr
-from jaxrock.cli import main
 
 BLOCK = jr.Block(4.0, 1.0)
 FREQ = np.array([0.5, 2.0, 4.0, 6.0])
@@ -70,23 +69,3 @@ def test_no_impact_edge_tends_to_linearized_closed_form():
     no_impact = (bm.outcome == jr.Outcome.OVERTURNED) & (bm.impacts == 0)
     assert np.all(bm.status == jr.Status.SUCCESS)
     assert np.array_equal(no_impact.reshape(4, 2), np.tile([False, True], (4, 1)))
-
-
-def test_cli_spectrum(tmp_path, capsys):
-    out = tmp_path / "s.png"
-    assert (
-        main(
-            [
-                "spectrum",
-                "--frequency-ratio",
-                "1:4:3",
-                "--amplitude-ratio",
-                "1:5:5",
-                "--out",
-                str(out),
-            ]
-        )
-        == 0
-    )
-    assert out.stat().st_size > 10_000
-    assert "minimum" in capsys.readouterr().out

@@ -1,0 +1,130 @@
+"""The chunk store of maps (resume, refusal of another map's chunks, unreadable
+chunks) and `BehaviorMap.save` / `load`."""
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock import _maps
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
+SIZE = np.array([0.3, 1.0, 2.5])
+
+
+def test_save_load_roundtrip(linear_map, tmp_path):
+    linear_map.save(tmp_path / "m.npz")
+    back = jr.BehaviorMap.load(tmp_path / "m.npz")
+    for k in ("slenderness", "size", "outcome", "max_rotation", "uplift_time"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(linear_map, k))
+    assert back.base == linear_map.base and back.motion == linear_map.motion
+    assert "rocking" in linear_map.summary()
+
+
+def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    first = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    chunks = sorted(tmp_path.glob("chunk_*.npz"))
+    assert len(chunks) == 4  # 15 cells in chunks of 4
+    chunks[2].unlink()  # as if interrupted before the third chunk was written
+    calls = []
+    original = _maps._map_chunk
+
+    def counting(*args):
+        calls.append(bool(args[-2]))  # pilot pass or not
+        return original(*args)
+
+    monkeypatch.setattr(_maps, "_map_chunk", counting)
+    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    assert calls.count(False) == 1  # the pilots rerun (they are not stored)
+    for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
+        np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
+    np.testing.assert_allclose(first.max_rotation, linear_map.max_rotation, rtol=1e-9)
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(
+            LAM,
+            SIZE,
+            jr.LinearIsolator(2.5, 0.35, 0.5),
+            PULSE,
+            chunk_size=4,
+            store=tmp_path,
+        )
+
+
+def test_store_refuses_another_maps_chunks_without_its_manifest(tmp_path):
+    """Each chunk carries its map's key: with the manifest gone, a map of
+    another pulse into the same store is refused, not mixed in."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    (tmp_path / "manifest.json").unlink()
+    other = jr.near_fault_pulse("Northridge JFA/SN")
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(LAM, SIZE, base, other, chunk_size=4, store=tmp_path)
+
+
+def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    chunk = sorted(tmp_path.glob("chunk_*.npz"))[1]
+    chunk.write_bytes(chunk.read_bytes()[:100])
+    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    for k in ("outcome", "impacts", "status", "max_rotation"):
+        np.testing.assert_array_equal(getattr(again, k), getattr(linear_map, k))
+    assert chunk.stat().st_size > 100  # written again, whole
+
+
+def _saved_map(tmp_path, **changes):
+    arrays = dict(
+        slenderness=np.array([2.0, 3.0]),
+        size=np.array([1.0]),
+        outcome=np.zeros((2, 1), dtype=int),
+        max_rotation=np.zeros((2, 1)),
+        max_base_displacement=np.zeros((2, 1)),
+        impacts=np.zeros((2, 1), dtype=int),
+        uplift_time=np.full((2, 1), np.nan),
+        status=np.zeros((2, 1), dtype=int),
+        steps=np.zeros((2, 1), dtype=int),
+        segments=np.zeros((2, 1), dtype=int),
+    )
+    arrays.update(changes)
+    meta = json.dumps(dict(base="fixed base", motion="m", seconds=0.0))
+    path = tmp_path / "map.npz"
+    np.savez(path, metadata=np.array(meta), **arrays)
+    return path
+
+
+def test_load_reads_a_consistent_map(tmp_path):
+    bm = jr.BehaviorMap.load(_saved_map(tmp_path))
+    assert bm.outcome.shape == (2, 1) and bm.counts()["no_rocking"] == 2
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(outcome=np.full((2, 1), 7)), "outcome holds codes"),
+        (dict(outcome=np.full((2, 1), -1)), "outcome holds codes"),
+        (dict(status=np.full((2, 1), 9)), "status holds codes"),
+        (dict(max_rotation=np.zeros((3, 1))), "max_rotation has shape"),
+        (dict(outcome=np.zeros((2, 2), dtype=int)), "outcome has shape"),
+    ],
+)
+def test_load_refuses_inconsistent_arrays(tmp_path, changes, message):
+    with pytest.raises(ValueError, match=message):
+        jr.BehaviorMap.load(_saved_map(tmp_path, **changes))
+
+
+def test_load_refuses_corrupt_truncated_and_foreign_files(tmp_path):
+    good = _saved_map(tmp_path).read_bytes()
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good[: len(good) // 2])
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip file at all")
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, x=np.arange(3))
+    bad_meta = tmp_path / "bad_meta.npz"
+    np.savez(bad_meta, metadata=np.array("{not json"), x=np.arange(3))
+    for path in (truncated, garbage, foreign, bad_meta, tmp_path / "missing.npz"):
+        with pytest.raises(ValueError, match="not a behavior map"):
+            jr.BehaviorMap.load(path)
