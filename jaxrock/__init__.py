@@ -12,6 +12,7 @@ jax.config.update("jax_enable_x64", True)
 
 from . import design as design  # noqa: E402
 from . import io as io  # noqa: E402
+from . import records as records  # noqa: E402
 from ._block import Block as Block  # noqa: E402
 from ._fragility import Fragility as Fragility  # noqa: E402
 from ._fragility import fit_lognormal as fit_lognormal
@@ -24,9 +25,6 @@ from ._ground import (
 )
 from ._ground import (
     MPPulse as MPPulse,
-)
-from ._ground import (
-    Record as Record,
 )
 from ._ground import (
     SinePulse as SinePulse,
@@ -54,6 +52,9 @@ from ._isolators import (
 )
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
+from ._record import (
+    Record as Record,
+)
 from ._results import (  # noqa: E402
     EventKind as EventKind,
 )

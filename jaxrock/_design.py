@@ -24,9 +24,10 @@ import numpy as np
 import optax
 
 from ._block import Block
-from ._ground import AbstractGroundMotion, Record
+from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import is_count
+from ._record import Record
 from ._results import ATOL, RTOL, Outcome, Response, SolverOptions
 from ._simulate import run
 

@@ -8,29 +8,28 @@ import numpy as np
 import optax
 from jax.scipy.stats import norm
 
-from ._ground import AbstractGroundMotion, MPPulse, Record
+from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._maps import _batch_shape, behavior_map
-from ._misc import GRAVITY, positive
+from ._maps import behavior_map
+from ._misc import GRAVITY, grid_axis, positive
+from ._model import check_base_and_motion
+from ._record import Record
 from ._results import Outcome, Status
 
 MEASURES = ("pga", "pgv", "pga_ratio")
 
 
 def _peaks(motion: AbstractGroundMotion, samples: int = 20001):
-    """(PGA in m/s^2, PGV in m/s) of each motion of a batch (1-D arrays)."""
+    """(PGA in m/s^2, PGV in m/s) of each motion of a batch (flat 1-D arrays):
+    a record's from its samples, a pulse's on `samples` points."""
     if isinstance(motion, Record):
-        a = np.asarray(motion.samples)
-        v = np.concatenate(
-            [[0.0], np.cumsum(0.5 * (a[1:] + a[:-1]) * float(motion.dt))]
-        )
-        return np.array([np.abs(a).max()]), np.array([np.abs(v).max()])
-    shape = _batch_shape(motion)
+        return np.reshape(motion.pga, -1), np.reshape(motion.pgv, -1)
+    shape = motion.batch_shape
     flat = jax.tree_util.tree_map(
         lambda x: jnp.broadcast_to(x, shape).reshape(-1), motion
     )
-    start = np.asarray(flat.t0 - flat.half_duration)
-    stop = np.asarray(flat.end_time)
+    start = np.reshape(np.asarray(flat.start_time), -1)
+    stop = np.reshape(np.asarray(flat.end_time), -1)
     ts = start[:, None] + (stop - start)[:, None] * np.linspace(0.0, 1.0, samples)
     acc = jax.vmap(lambda m, t: m.acceleration(t))
     vel = jax.vmap(lambda m, t: m.velocity(t))
@@ -97,6 +96,9 @@ class Fragility(eqx.Module):
     beta_rocking: float
     median_overturning: float
     beta_overturning: float
+    # The motion (before scaling) of each row, and the records' names.
+    motion_index: np.ndarray | None = None
+    motion_names: tuple | None = None
 
     def probability(self, im, which: str = "overturning"):
         """The fitted lognormal P(rocking or overturning | IM)."""
@@ -111,22 +113,58 @@ def fragility(
     base: AbstractIsolator,
     motions: AbstractGroundMotion,
     *,
+    scales=None,
     measure: str = "pga",
     **map_options,
 ) -> Fragility:
     """Rocking and overturning of one block over an ensemble of motions.
 
-    `motions` is an `MPPulse` whose parameters carry one batch axis (pulse
-    parameters sampled or swept; e.g. a scaled Table 3.1 pulse,
-    `MPPulse(scales * p.amplitude, p.frequency, p.gamma, p.phase)`). The
-    analyses run as one behavior map with a motion axis; `map_options` go to
-    `behavior_map`. Returns a `Fragility` with lognormal fits by maximum
-    likelihood.
+    The standard incremental analysis of rocking objects: every motion of a
+    suite of records (`Record.stack`) at every factor of `scales`, or any
+    batched motion (a batched `MPPulse`, a suite) as it is. The analyses run
+    as one behavior map with motion axes. The intensity measure of each
+    analysis is computed from its own scaled motion: "pga" (m/s^2), "pgv"
+    (m/s) or "pga_ratio", PGA / (g tan alpha). P(rocking) and P(overturning)
+    are fitted as lognormal curves by maximum likelihood over the analyses
+    whose status is SUCCESS.
+
+    Args:
+        slenderness: the block's lambda = h / b.
+        size: the block's half-diagonal r (m).
+        base: the base (`FixedBase`, `LinearIsolator`, `FrictionPendulum`).
+        motions: a suite of records, one record (with `scales`), or a batched
+            pulse.
+        scales: amplitude factors (> 0) applied to every motion; None: the
+            motions as given.
+        measure: "pga", "pgv" or "pga_ratio".
+        **map_options: passed to `behavior_map` (rtol, duration, ...).
+
+    Returns:
+        A `Fragility`: one row per analysis (scales first, then motions),
+        with `motion_index` the motion each row scales and the fits.
+
+    Raises:
+        ValueError: an unknown measure, `scales` not all > 0, a single
+            unscaled motion, or a motion that does not move the ground.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+        >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
+        ...                     scales=[0.2, 0.5, 1.0, 1.5])  # doctest: +SKIP
     """
     if measure not in MEASURES:
         raise ValueError(f"`measure` must be one of {MEASURES}, got {measure!r}")
-    if not isinstance(motions, MPPulse):
-        raise ValueError("`motions` must be an MPPulse with batched parameters")
+    check_base_and_motion(base, motions)
+    members = int(np.prod(motions.batch_shape))
+    names = motions.names()
+    if scales is not None:
+        motions = motions.scaled(grid_axis("scales", scales))
+    elif motions.batch_shape == ():
+        raise ValueError(
+            "`motions` must be an ensemble (a suite of records or a batched pulse), "
+            "or give `scales`"
+        )
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     outcome = bm.outcome.reshape(-1)
     pga, pgv = _peaks(motions)
@@ -154,4 +192,6 @@ def fragility(
         beta_rocking=beta_r,
         median_overturning=med_o,
         beta_overturning=beta_o,
+        motion_index=np.arange(outcome.size) % members,
+        motion_names=names,
     )

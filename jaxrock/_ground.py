@@ -1,19 +1,21 @@
 """Ground motions: the Mavroeidis-Papageorgiou pulse and recorded accelerograms."""
 
 import abc
+from typing import ClassVar
 
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float
 
 from ._misc import (
     AbstractChecked,
     Constraint,
+    broadcast_batch_shape,
     describe_values,
     finite,
     greater_than_zero,
     parameter,
     real_number,
+    scale_factors,
 )
 from ._trig import sincos
 
@@ -45,6 +47,37 @@ class AbstractGroundMotion(AbstractChecked):
     def jump_ts(self) -> Float[Array, " k"] | None:
         """Discontinuities of x_g'' (s): the integrator restarts after them."""
         return None
+
+    @property
+    def sample_count(self) -> int:
+        """Samples of the motion (a record's; 0 for a closed form)."""
+        return 0
+
+    @property
+    def start_time(self) -> Float[Array, ""]:
+        """When the excitation starts (s)."""
+        return jnp.zeros_like(self.end_time)
+
+    # One motion's data are shared by every cell of a map (a record's samples),
+    # not gathered per cell.
+    shared_by_cells: ClassVar[bool] = False
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """The shape of a batch of motions (their parameters broadcast)."""
+        return broadcast_batch_shape(self)
+
+    def names(self) -> tuple | None:
+        """A name per motion of a batch (flat, C order); None if unnamed."""
+        return None
+
+    def unlabeled(self) -> "AbstractGroundMotion":
+        """The motion without static labels (what compiled code takes)."""
+        return self
+
+    def scaled(self, factor) -> "AbstractGroundMotion":
+        """The motion times `factor` (> 0; an array adds leading axes)."""
+        raise NotImplementedError(f"{type(self).__name__} cannot be scaled")
 
     @property
     def max_step(self) -> Float[Array, ""] | None:
@@ -108,6 +141,10 @@ class MPPulse(AbstractGroundMotion):
         )
 
     @property
+    def start_time(self):
+        return self.t0 - self.half_duration
+
+    @property
     def half_duration(self):
         return 0.5 * self.gamma / self.frequency
 
@@ -122,6 +159,19 @@ class MPPulse(AbstractGroundMotion):
             sin_e * cos_p + self.gamma * sin_p * (1.0 + cos_e)
         )
         return jnp.where(jnp.abs(t - self.t0) <= self.half_duration, a, 0.0)
+
+    def scaled(self, factor) -> "MPPulse":
+        factor = scale_factors(factor)
+        shape = factor.shape + self.batch_shape
+        factor = factor.reshape(factor.shape + (1,) * len(self.batch_shape))
+        return MPPulse(
+            *(
+                jnp.broadcast_to(x, shape)
+                for x in (factor * self.amplitude, self.frequency, self.gamma)
+            ),
+            jnp.broadcast_to(self.phase, shape),
+            jnp.broadcast_to(self.t0, shape),
+        )
 
     def velocity(self, t):
         """Ground velocity v(t) (m/s)."""
@@ -166,6 +216,15 @@ class SinePulse(AbstractGroundMotion):
         a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
         return jnp.where((t >= 0) & (t <= self.end_time), a, 0.0)
 
+    def scaled(self, factor) -> "SinePulse":
+        factor = scale_factors(factor)
+        shape = factor.shape + self.batch_shape
+        factor = factor.reshape(factor.shape + (1,) * len(self.batch_shape))
+        return SinePulse(
+            jnp.broadcast_to(factor * self.amplitude, shape),
+            jnp.broadcast_to(self.frequency, shape),
+        )
+
     def velocity(self, t):
         """Ground velocity (m/s); it keeps its final value after the pulse."""
         w = 2.0 * jnp.pi * self.frequency
@@ -179,69 +238,6 @@ class SinePulse(AbstractGroundMotion):
     @property
     def max_step(self):
         return 1.0 / (32.0 * self.frequency)
-
-
-class Record(AbstractGroundMotion):
-    """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s).
-
-    Sample k is at t = k dt; linear between samples, zero after the last one.
-    The samples are kept as `samples`.
-    """
-
-    samples: Float[Array, " n"] = parameter("acceleration")
-    dt: Float[Array, ""] = parameter("dt")
-
-    def __init__(self, acceleration, dt):
-        self.samples = acceleration
-        self.dt = dt
-
-    def __check_init__(self):
-        samples = self.samples
-        if np.ndim(samples) != 1 or np.shape(samples)[0] < 2:
-            raise ValueError(
-                "`acceleration` must be a 1-D array of at least 2 samples, got shape "
-                f"{np.shape(samples)}"
-            )
-
-    def constraints(self):
-        return [
-            Constraint(
-                "acceleration", self.samples, lambda v: v == v, "finite (no NaN or inf)"
-            ),
-            greater_than_zero("dt", self.dt),
-        ]
-
-    def describe(self):
-        return (
-            f"record ({self.samples.shape[0]} samples, "
-            f"dt = {describe_values(self.dt)} s)"
-        )
-
-    def acceleration(self, t):
-        a = self.samples
-        n = a.shape[0]
-        x = t / self.dt
-        k = jnp.clip(jnp.floor(x), 0, n - 2).astype(int)
-        frac = x - k
-        value = a[k] + (a[k + 1] - a[k]) * frac
-        return jnp.where((t >= 0) & (t <= (n - 1) * self.dt), value, 0.0)
-
-    @property
-    def end_time(self):
-        return (self.samples.shape[0] - 1) * self.dt
-
-    @property
-    def step_ts(self):
-        return self.dt * jnp.arange(self.samples.shape[0])
-
-    @property
-    def jump_ts(self):
-        # x_g'' drops from the last sample to zero.
-        return self.end_time[None]
-
-    @property
-    def peak_acceleration(self):
-        return jnp.max(jnp.abs(self.samples))
 
 
 # Table 3.1 of the paper (Mavroeidis & Papageorgiou 2003 fits):

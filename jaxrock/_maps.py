@@ -17,19 +17,19 @@ from ._block import Block
 from ._dynamics import Phase
 from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
-from ._ground import AbstractGroundMotion, Record
+from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import as_float, grid_axis, is_count, positive
+from ._misc import as_float, broadcast_batch_shape, grid_axis, is_count, positive
 from ._model import Carry, check_base_and_motion, initial_carry, response
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
-    MAX_STEPS,
     REST_TOLERANCE,
     RTOL,
     Outcome,
     SolverOptions,
     Status,
+    max_steps_for,
 )
 from ._store import ChunkStore
 
@@ -72,13 +72,25 @@ class _Lanes(eqx.Module):
 
 @eqx.filter_jit
 def _map_chunk(
-    slenderness, size, base, motion, shared, duration, opts, count, pilot, width
+    slenderness,
+    size,
+    base,
+    motion,
+    motion_index,
+    shared,
+    duration,
+    opts,
+    count,
+    pilot,
+    width,
 ):
     """Analyse the first `count` cells of a chunk on `width` lanes that refill
     from a queue.
 
-    `slenderness`, `size`, every leaf of `base` (and of `motion`, unless it is a
-    `Record`) and of `shared` carry one leading cell axis; cells from `count` on
+    `slenderness`, `size`, every leaf of `base` and of `shared` carry one
+    leading cell axis; so do those of `motion`, unless it is one motion for all
+    cells (a record, `shared_by_cells`) or a suite of records, of which
+    `motion_index` (else None) gives each cell's record; cells from `count` on
     are padding and never analysed (`count` is traced: one compile per chunk
     shape). Each iteration of the vmapped loop advances every lane by one step
     attempt (`flat_step`); a lane whose analysis is done writes its result and
@@ -106,21 +118,28 @@ def _map_chunk(
     """
     n = slenderness.shape[0]
     width = min(width, n)
-    record = isinstance(motion, Record)
-    axes = (0, 0, None if record else 0)
+    # The motion: per cell (its parameters carry the cell axis), one suite of
+    # records and each cell's index into it, or one record for every cell.
+    suite = motion_index is not None
+    one_motion = not suite and motion.shared_by_cells
+    axes = (0, 0, None if one_motion else 0)
 
     def gather(cell):
         """The cells' block, base and motion, each with a lane axis (the motion
-        None for a record: one motion for every lane, see `inputs`)."""
+        None for one motion of every lane, see `inputs`)."""
         cell = jnp.minimum(cell, n - 1)
         take = lambda tree: jax.tree_util.tree_map(lambda x: x[cell], tree)  # noqa: E731
-        lane_motion = None if record else take(motion)
+        lane_motion = None
+        if suite:
+            lane_motion = motion.select(motion_index[cell])
+        elif not one_motion:
+            lane_motion = take(motion)
         return Block(slenderness[cell], size[cell]), take(base), lane_motion
 
     def inputs(per_lane):
         """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
         block, lane_base, lane_motion = per_lane
-        return block, lane_base, motion if record else lane_motion
+        return block, lane_base, motion if one_motion else lane_motion
 
     def start(cell, per_lane):
         c = jax.vmap(initial_carry, in_axes=axes)(*inputs(per_lane))
@@ -244,6 +263,26 @@ class BehaviorMap(eqx.Module):
     motion: str
     seconds: float
     lane_efficiency: float = float("nan")
+    # The records' names of a map under a suite (its leading motion axis).
+    motion_names: tuple | None = None
+
+    def select(self, index: int) -> "BehaviorMap":
+        """The map at `index` of its leading axis (a suite's record, an
+        ensemble's isolator or pulse), labelled with the record's name."""
+        if self.outcome.ndim < 3:
+            raise ValueError("the map has no leading batch axis to select from")
+        fields = {k: getattr(self, k)[index] for k in _FIELDS}
+        names = self.motion_names
+        one = names is not None and len(names) == self.outcome.shape[0]
+        return BehaviorMap(
+            slenderness=self.slenderness,
+            size=self.size,
+            **fields,
+            base=self.base,
+            motion=names[index] if one else f"{self.motion} [{index}]",
+            seconds=self.seconds,
+            lane_efficiency=self.lane_efficiency,
+        )
 
     def counts(self) -> dict[str, int]:
         """Cells per outcome, plus cells whose analysis did not converge."""
@@ -270,6 +309,7 @@ class BehaviorMap(eqx.Module):
                 "motion": self.motion,
                 "seconds": self.seconds,
                 "lane_efficiency": self.lane_efficiency,
+                "motion_names": self.motion_names,
             }
         )
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
@@ -289,7 +329,8 @@ class BehaviorMap(eqx.Module):
                 missing = [k for k in ("metadata",) + names if k not in data.files]
                 if missing:
                     raise ValueError(f"missing {', '.join(missing)}")
-                meta = json.loads(str(data["metadata"]))
+                data_meta = data["metadata"]
+                meta = json.loads(str(data_meta))
                 arrays = {k: data[k] for k in names}
             if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(
                 meta
@@ -300,6 +341,9 @@ class BehaviorMap(eqx.Module):
                 for k in ("base", "motion", "seconds", "lane_efficiency")
                 if k in meta
             }
+            names = json.loads(str(data_meta)).get("motion_names")
+            if isinstance(names, list):
+                meta["motion_names"] = tuple(names)
             _check_map_arrays(arrays)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
             raise ValueError(
@@ -332,17 +376,6 @@ def _leaf_digest(module) -> str:
     for x in jax.tree_util.tree_leaves(module):
         h.update(np.ascontiguousarray(np.asarray(x, dtype=float)).tobytes())
     return h.hexdigest()[:16]
-
-
-def _batch_shape(module) -> tuple[int, ...]:
-    leaves = [np.shape(x) for x in jax.tree_util.tree_leaves(module)]
-    try:
-        return np.broadcast_shapes(*leaves) if leaves else ()
-    except ValueError:
-        raise ValueError(
-            f"the parameters of {type(module).__name__} must share one batch shape, "
-            f"got shapes {leaves}"
-        ) from None
 
 
 def _cells_of(module, shape, index):
@@ -407,9 +440,13 @@ class _Grid:
 
     def __init__(self, lam, r, base, motion):
         self.lam, self.r, self.base, self.motion = lam, r, base, motion
-        self.record = isinstance(motion, Record)  # one motion shared by all cells
-        self.base_shape = _batch_shape(base)
-        self.motion_shape = () if self.record else _batch_shape(motion)
+        self.motion_shape = motion.batch_shape
+        self.motion_names = motion.names() if self.motion_shape else None
+        # A suite of records: the cells index into it (one copy of the samples).
+        self.suite = motion.shared_by_cells and self.motion_shape != ()
+        # One motion (a single record) shared by every cell.
+        self.one_motion = motion.shared_by_cells and not self.suite
+        self.base_shape = broadcast_batch_shape(base)
         self.shape = self.base_shape + self.motion_shape + (lam.size, r.size)
         self.n = int(np.prod(self.shape))
         n_base, n_motion = (
@@ -429,23 +466,33 @@ class _Grid:
 
     def inputs(self, ib, im, il, ir):
         """(slenderness, size, base, motion) of the cells (ib, im, il, ir) (1-D
-        index arrays); the motion None for a record (shared)."""
+        index arrays); the motion is None for one motion of every cell, the
+        index into the suite for a suite of records."""
+        if self.one_motion:
+            motion = None
+        elif self.suite:
+            motion = im
+        else:
+            motion = _cells_of(self.motion, self.motion_shape, im)
         return (
             self.lam[il],
             self.r[ir],
             _cells_of(self.base, self.base_shape, ib),
-            None if self.record else _cells_of(self.motion, self.motion_shape, im),
+            motion,
         )
 
     def blank_carries(self):
         """Zero carries of every pilot (the `shared` input of the pilot pass)."""
         first = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)  # noqa: E731
         _, _, base, motion = self.pilot_inputs
+        if self.one_motion:
+            motion = self.motion
+        elif self.suite:
+            motion = self.motion.select(0).unlabeled()
+        else:
+            motion = first(motion)
         proto = jax.eval_shape(
-            initial_carry,
-            Block(self.lam[0], self.r[0]),
-            first(base),
-            self.motion if self.record else first(motion),
+            initial_carry, Block(self.lam[0], self.r[0]), first(base), motion
         )
         return jax.tree_util.tree_map(
             lambda s: np.zeros((self.pilots,) + s.shape, s.dtype), proto
@@ -487,7 +534,7 @@ class _ChunkRunner:
         self.grid, self.opts, self.padded = grid, opts, padded
         self.devices = jax.local_devices()
         self.on_device = [
-            jax.device_put((grid.motion, duration), d) for d in self.devices
+            jax.device_put((grid.motion.unlabeled(), duration), d) for d in self.devices
         ]
 
     def args(self, k, index, inputs, shared, pilot):
@@ -502,8 +549,10 @@ class _ChunkRunner:
 
         d_motion, d_duration = self.on_device[d]
         lam_k, r_k, base_k, motion_k = inputs
-        m = d_motion if self.grid.record else part(motion_k)
-        args = (part(lam_k), part(r_k), part(base_k), m, part(shared), d_duration)
+        index = part(motion_k) if self.grid.suite else None
+        m = d_motion if self.grid.motion.shared_by_cells else part(motion_k)
+        args = (part(lam_k), part(r_k), part(base_k), m, index)
+        args += (part(shared), d_duration)
         flags = jax.device_put((np.asarray(count), np.asarray(pilot)), self.devices[d])
         return args + (self.opts, flags[0], flags[1])
 
@@ -546,6 +595,7 @@ def behavior_map(
     chunk_size: int | None = 610,
     progress: bool | None = None,
     max_segments: int = MAX_SEGMENTS,
+    max_steps: int | None = None,
     rest_tolerance: float = REST_TOLERANCE,
     solver=None,
     store: str | os.PathLike | None = None,
@@ -578,18 +628,22 @@ def behavior_map(
     check_base_and_motion(base, motion)
     lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
-    if isinstance(motion, Record) and motion.samples.ndim != 1:
-        raise ValueError("a batch of records is not supported: map them one by one")
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
     chunk_size = _chunk_size(chunk_size)
     opts = SolverOptions(
-        rtol, atol, MAX_STEPS, max_segments, rest_tolerance, solver or diffrax.Tsit5()
+        rtol,
+        atol,
+        max_steps_for(motion, max_steps),
+        max_segments,
+        rest_tolerance,
+        solver or diffrax.Tsit5(),
     )
+    shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
+    _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
     n = grid.n
-    _check_fits_in_memory(n)
     chunk = n if chunk_size is None else min(chunk_size, n)
     # Chunks are padded to a power of two (at most `chunk_size`): maps of
     # other sizes reuse a handful of compiles. Small maps all take one chunk
@@ -702,4 +756,5 @@ def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:
         motion=grid.motion.describe(),
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
+        motion_names=grid.motion_names,
     )

@@ -83,6 +83,26 @@ def at_least_zero(name, value) -> Constraint:
     return Constraint(name, value, lambda v: v >= 0, "finite and >= 0")
 
 
+def broadcast_batch_shape(module) -> tuple[int, ...]:
+    """The batch shape of a module's parameters, broadcast together."""
+    leaves = [np.shape(x) for x in jax.tree_util.tree_leaves(module)]
+    try:
+        return tuple(np.broadcast_shapes(*leaves)) if leaves else ()
+    except ValueError:
+        raise ValueError(
+            f"the parameters of {type(module).__name__} must share one batch shape, "
+            f"got shapes {leaves}"
+        ) from None
+
+
+def scale_factors(factor) -> np.ndarray:
+    """Scale factors as an array, each finite and > 0 (`ValueError` else)."""
+    factor = np.asarray(factor, dtype=float)
+    if factor.size == 0 or not np.all(np.isfinite(factor) & (factor > 0)):
+        raise ValueError(f"`factor` must be finite and > 0, got {factor.tolist()}")
+    return factor
+
+
 def describe_values(x) -> str:
     """A parameter for a title: its value, or the range of a batch."""
     x = np.asarray(x)

@@ -63,6 +63,17 @@ MAX_STEPS, MAX_SEGMENTS = 16384, 2000
 REST_TOLERANCE = 1e-6
 
 
+def max_steps_for(motion, max_steps: int | None) -> int:
+    """The step limit of a segment: `max_steps`, or by default `MAX_STEPS`
+    raised for a long record to a power of two above 4 steps a sample (every
+    sample is a step boundary: a segment in translation through a whole
+    record takes one step a sample or more). A guard against runaway solves,
+    never a limit a valid record reaches."""
+    if max_steps is not None:
+        return max_steps
+    return max(MAX_STEPS, 1 << (4 * motion.sample_count).bit_length())
+
+
 class SolverOptions(AbstractChecked):
     """Numerical options. Tolerances are traced (new values do not recompile);
     the solver, `step` being set or not, and the limits are static.

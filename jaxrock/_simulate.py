@@ -31,13 +31,13 @@ from ._model import (
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
-    MAX_STEPS,
     REST_TOLERANCE,
     RTOL,
     EventKind,
     History,
     Response,
     SolverOptions,
+    max_steps_for,
 )
 
 
@@ -213,7 +213,7 @@ def simulate(
     atol: float = ATOL,
     history: bool = False,
     history_step: float | None = None,
-    max_steps: int = MAX_STEPS,
+    max_steps: int | None = None,
     max_segments: int = MAX_SEGMENTS,
     rest_tolerance: float = REST_TOLERANCE,
     solver: diffrax.AbstractSolver | None = None,
@@ -236,7 +236,9 @@ def simulate(
             by a Python loop of compiled segments.
         history_step: spacing of the history's samples (s); every event is
             recorded as well. Default: duration / 2000, at most 0.01 s.
-        max_steps: the solver's step limit in one segment.
+        max_steps: the solver's step limit in one segment; default 16384,
+            raised for long records to 4 steps a sample (a guard against
+            runaway solves that a valid record never reaches).
         max_segments: the limit on segments (events) of the analysis.
         rest_tolerance: the rest rule (`SolverOptions`).
         solver: a Diffrax solver; default `diffrax.Tsit5()`.
@@ -258,8 +260,14 @@ def simulate(
     positive("duration", duration)
     duration = as_float(duration)
     opts = SolverOptions(
-        rtol, atol, max_steps, max_segments, rest_tolerance, solver or diffrax.Tsit5()
+        rtol,
+        atol,
+        max_steps_for(motion, max_steps),
+        max_segments,
+        rest_tolerance,
+        solver or diffrax.Tsit5(),
     )
+    motion = motion.unlabeled()  # labels are static: they would recompile
     if not history:
         return _run_jit(block, base, motion, duration, opts)
     if history_step is None:

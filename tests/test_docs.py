@@ -12,7 +12,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_docs_build_strict(tmp_path):
     pytest.importorskip("mkdocs", reason="the docs tools come with the test extra")
-    pytest.importorskip("mkdocstrings", reason="the docs tools come with the test extra")
+    pytest.importorskip(
+        "mkdocstrings", reason="the docs tools come with the test extra"
+    )
     site = tmp_path / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
     done = subprocess.run(

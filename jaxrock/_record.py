@@ -1,0 +1,272 @@
+"""Recorded accelerograms: one record, or a suite of records of different
+lengths and time steps, with their labels."""
+
+from collections.abc import Sequence
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from ._ground import AbstractGroundMotion
+from ._misc import (
+    GRAVITY,
+    Constraint,
+    describe_values,
+    greater_than_zero,
+    parameter,
+    scale_factors,
+)
+
+
+def _labels(value, n):
+    """A label per record of a suite: `value` repeated, or a sequence of n."""
+    if isinstance(value, (tuple, list)):
+        if len(value) != n:
+            raise ValueError(f"expected {n} labels, got {len(value)}")
+        return tuple(value)
+    return (value,) * n
+
+
+class Record(AbstractGroundMotion):
+    """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s).
+
+    Sample k is at t = k dt; x_g'' is linear between samples and zero after
+    the last one. A suite (`Record.stack`) holds several records along leading
+    axes, each with its own `dt` and number of samples (`length`); the rest of
+    its row is padding that no result depends on.
+
+    Labels for titles and tables, static (they never enter a computation):
+    `name` (event, station and component), `azimuth` (the component's
+    direction, degrees clockwise from north; None if unknown) and `rsn` (the
+    PEER record sequence number; None if unknown). Of a suite, tuples.
+
+    Example:
+        >>> import numpy as np, jaxrock as jr
+        >>> t = np.arange(0.0, 10.0, 0.01)
+        >>> rec = jr.Record(3.0 * np.sin(2 * np.pi * t), 0.01, name="sine")
+        >>> rec.end_time, rec.scaled(2.0).peak_acceleration
+        (Array(9.99, dtype=float64), Array(6., dtype=float64))
+    """
+
+    samples: Float[Array, "*batch n"] = parameter("acceleration")
+    dt: Float[Array, "*batch"] = parameter("dt")
+    length: Int[Array, "*batch"]
+    shared_by_cells: ClassVar[bool] = True
+    name: str | tuple | None = eqx.field(static=True)
+    azimuth: float | tuple | None = eqx.field(static=True)
+    rsn: int | tuple | None = eqx.field(static=True)
+
+    def __init__(
+        self, acceleration, dt, *, length=None, name=None, azimuth=None, rsn=None
+    ):
+        self.samples = acceleration
+        self.dt = dt
+        n = np.shape(self.samples)[-1] if np.ndim(self.samples) else 0
+        length = n if length is None else length
+        self.length = jnp.broadcast_to(
+            jnp.asarray(length, dtype=int), jnp.shape(self.dt)
+        )
+        count = int(np.prod(np.shape(self.samples)[:-1]))
+        if np.ndim(self.samples) > 1:  # a suite: one label per record
+            name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
+        self.name, self.azimuth, self.rsn = name, azimuth, rsn
+
+    def __check_init__(self):
+        shape = np.shape(self.samples)
+        if len(shape) < 1 or shape[-1] < 2:
+            raise ValueError(
+                "`acceleration` must hold at least 2 samples (along its last axis), "
+                f"got shape {shape}"
+            )
+        if np.shape(self.dt) != shape[:-1]:
+            raise ValueError(
+                f"`dt` must have shape {shape[:-1]} (one per record), got "
+                f"{np.shape(self.dt)}"
+            )
+
+    def constraints(self):
+        n = np.shape(self.samples)[-1]
+        return [
+            Constraint(
+                "acceleration", self.samples, lambda v: v == v, "finite (no NaN or inf)"
+            ),
+            greater_than_zero("dt", self.dt),
+            Constraint(
+                "length", self.length, lambda v: (v >= 2) & (v <= n), f">= 2 and <= {n}"
+            ),
+        ]
+
+    # -- building ---------------------------------------------------------------
+
+    @classmethod
+    def stack(cls, records: Sequence["Record"]) -> "Record":
+        """A suite: the records along a leading motion axis, each keeping its own
+        samples, `dt`, end time and labels (shorter ones padded with zeros).
+
+        `behavior_map` under a suite has shape (n_records, n_slenderness,
+        n_size), and each cell equals the same cell under its record alone.
+        """
+        records = list(records)
+        if not records or not all(isinstance(r, Record) for r in records):
+            raise ValueError("`records` must be a non-empty list of Record")
+        if any(r.batch_shape != () for r in records):
+            raise ValueError("`records` must be single records, not suites")
+        n = max(r.samples.shape[-1] for r in records)
+        rows = [
+            np.pad(np.asarray(r.samples), (0, n - r.samples.shape[-1])) for r in records
+        ]
+        return cls(
+            np.stack(rows),
+            np.stack([np.asarray(r.dt) for r in records]),
+            length=np.array([int(r.length) for r in records]),
+            name=tuple(r.name for r in records),
+            azimuth=tuple(r.azimuth for r in records),
+            rsn=tuple(r.rsn for r in records),
+        )
+
+    def scaled(self, factor) -> "Record":
+        """The record times `factor` (> 0). An array of factors adds leading
+        axes: one record at many intensities (a suite: every record at every
+        factor, the factors' axes first)."""
+        factor = scale_factors(factor)
+        batch, n = self.batch_shape, self.samples.shape[-1]
+        shape = factor.shape + batch
+        samples = factor.reshape(shape[: factor.ndim] + (1,) * len(batch) + (1,))
+        samples = samples * self.samples
+        labels = self.labels()
+        if factor.ndim:
+            labels = {
+                k: v * int(factor.size) for k, v in self.labels(flat=True).items()
+            }
+        return Record(
+            jnp.broadcast_to(samples, shape + (n,)),
+            jnp.broadcast_to(self.dt, shape),
+            length=jnp.broadcast_to(self.length, shape),
+            **labels,
+        )
+
+    def scaled_to(self, *, pga=None, pgv=None) -> "Record":
+        """The record scaled to a peak ground acceleration `pga` (m/s^2) or
+        velocity `pgv` (m/s): exactly one of the two, a scalar or one per
+        record of a suite."""
+        if (pga is None) == (pgv is None):
+            raise ValueError("give exactly one of `pga` (m/s^2) and `pgv` (m/s)")
+        name, target = ("pga", pga) if pga is not None else ("pgv", pgv)
+        now = self.pga if pga is not None else self.pgv
+        target = np.asarray(target, dtype=float)
+        if not np.all(np.isfinite(target) & (target > 0)):
+            raise ValueError(f"`{name}` must be finite and > 0, got {target.tolist()}")
+        if np.any(now <= 0):
+            raise ValueError(f"a record with zero {name.upper()} cannot be scaled")
+        factor = np.broadcast_to(target / now, now.shape)
+        return eqx.tree_at(
+            lambda r: r.samples, self, self.samples * jnp.asarray(factor)[..., None]
+        )
+
+    def labels(self, flat: bool = False) -> dict:
+        """name, azimuth and rsn; with `flat`, as tuples over the records."""
+        out = dict(name=self.name, azimuth=self.azimuth, rsn=self.rsn)
+        if flat and not self.batch_shape:
+            out = {k: (v,) for k, v in out.items()}
+        return out
+
+    def select(self, index) -> "Record":
+        """Records by position in the suite (its motion axes flattened, C
+        order): an int gives one record, an array of ints a suite."""
+        n = self.samples.shape[-1]
+        samples = self.samples.reshape(-1, n)[index]
+        dt = jnp.reshape(self.dt, -1)[index]
+        length = jnp.reshape(self.length, -1)[index]
+        try:
+            chosen = np.asarray(index)
+        except jax.errors.TracerArrayConversionError:  # inside compiled code
+            chosen = None
+        picked = {}
+        for key, values in self.labels(flat=True).items():
+            if chosen is None:
+                picked[key] = None
+            elif chosen.ndim == 0:
+                picked[key] = values[int(chosen)]
+            else:
+                picked[key] = tuple(values[int(j)] for j in chosen.reshape(-1))
+        return Record(samples, dt, length=length, **picked)
+
+    def names(self) -> tuple | None:
+        names = self.labels(flat=True)["name"]
+        return None if all(n is None for n in names) else names
+
+    def unlabeled(self) -> "Record":
+        """The record without labels: what compiled code takes (labels are
+        static, so two labels would compile twice)."""
+        return Record(self.samples, self.dt, length=self.length)
+
+    # -- what the engines read ----------------------------------------------------
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return tuple(np.shape(self.samples)[:-1])
+
+    @property
+    def sample_count(self) -> int:
+        return int(np.shape(self.samples)[-1])
+
+    def describe(self):
+        if self.batch_shape:
+            count = int(np.prod(self.batch_shape))
+            return f"suite of {count} records (dt = {describe_values(self.dt)} s)"
+        label = f"{self.name}, " if self.name else ""
+        return (
+            f"record ({label}{int(self.length)} samples, "
+            f"dt = {describe_values(self.dt)} s)"
+        )
+
+    def acceleration(self, t):
+        a = self.samples
+        x = t / self.dt
+        k = jnp.clip(jnp.floor(x), 0, self.length - 2).astype(int)
+        frac = x - k
+        value = a[k] + (a[k + 1] - a[k]) * frac
+        return jnp.where((t >= 0) & (t <= (self.length - 1) * self.dt), value, 0.0)
+
+    @property
+    def end_time(self):
+        return (self.length - 1) * self.dt
+
+    @property
+    def step_ts(self):
+        # Sample times; none past the record's own end (padding).
+        k = jnp.arange(self.samples.shape[-1])
+        return jnp.where(k < self.length, self.dt * k, jnp.inf)
+
+    @property
+    def jump_ts(self):
+        # x_g'' drops from the last sample to zero.
+        return self.end_time[None]
+
+    # -- intensity measures -----------------------------------------------------
+
+    @property
+    def peak_acceleration(self):
+        return jnp.max(jnp.abs(self.samples), axis=-1)
+
+    @property
+    def pga(self) -> np.ndarray:
+        """Peak ground acceleration (m/s^2), one per record."""
+        return np.asarray(self.peak_acceleration)
+
+    @property
+    def pgv(self) -> np.ndarray:
+        """Peak ground velocity (m/s), one per record: the trapezoidal integral
+        of the samples (no baseline correction)."""
+        a = np.asarray(self.samples)
+        dt = np.asarray(self.dt)[..., None]
+        inside = np.arange(1, a.shape[-1]) < np.asarray(self.length)[..., None]
+        dv = np.where(inside, 0.5 * (a[..., 1:] + a[..., :-1]) * dt, 0.0)
+        return np.max(np.abs(np.cumsum(dv, axis=-1)), axis=-1, initial=0.0)
+
+    @property
+    def pga_in_g(self) -> np.ndarray:
+        return self.pga / GRAVITY

