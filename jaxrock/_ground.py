@@ -21,7 +21,21 @@ from ._trig import sincos
 
 
 class AbstractGroundMotion(AbstractChecked):
-    """Horizontal ground acceleration x_g''(t) (m/s^2), zero before t = 0."""
+    """A horizontal ground motion, read as its acceleration x_g''(t) (m/s^2).
+
+    An analysis starts at t = 0 with the block and base at rest and reads the
+    motion through `acceleration(t)` (m/s^2, t in s) and `end_time` (s), when
+    the excitation ends; what the motion does before t = 0 is ignored, and the
+    default `duration` of `simulate` is `end_time` + 5 s. The motions are
+    `MPPulse`, `SinePulse` and `Record`. Their parameters may carry batch axes
+    (an ensemble of motions, for `behavior_map` and `fragility`).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> motion = jr.SinePulse(amplitude=3.0, frequency=2.0)
+        >>> isinstance(motion, jr.AbstractGroundMotion), float(motion.end_time)
+        (True, 0.5)
+    """
 
     @abc.abstractmethod
     def acceleration(self, t: Float[Array, ""]) -> Float[Array, ""]:
@@ -86,14 +100,35 @@ class AbstractGroundMotion(AbstractChecked):
 
 
 class MPPulse(AbstractGroundMotion):
-    """Mavroeidis & Papageorgiou (2003) near-fault pulse (Eq. 3.1 of the paper).
+    """Mavroeidis & Papageorgiou (2003) near-fault velocity pulse.
 
-    Ground velocity, for |t - t0| <= gamma / (2 f_p), zero elsewhere:
+    The ground velocity (m/s), for |t - t0| <= gamma / (2 f_p) and zero
+    elsewhere (Eq. 3.1 of the paper):
+
         v(t) = A/2 [1 + cos(2 pi f_p (t - t0) / gamma)] cos(2 pi f_p (t - t0) + nu)
-    and x_g'' = v'. `amplitude` A (m/s), `frequency` f_p (Hz) > 0,
-    1 < `gamma` <= 1e5, `phase` nu in degrees (|nu| <= 1e6), `t0` (s) the
-    envelope's peak; by default
-    t0 = gamma / (2 f_p), so that the pulse starts at t = 0.
+
+    and the ground acceleration x_g''(t) = v'(t) (m/s^2), continuous. The
+    pulse lasts gamma / f_p (s), its envelope peaking at t0; the default t0
+    starts it at t = 0. `near_fault_pulse` gives the pulses fitted to
+    near-fault records.
+
+    Args:
+        amplitude: A, the velocity amplitude (m/s), finite.
+        frequency: f_p, the prevailing frequency (Hz), > 0.
+        gamma: the oscillatory character (-), > 1 and <= 1e5.
+        phase: nu, the phase angle (degrees), within +-1e6.
+        t0: the time of the envelope's peak (s), > -gamma / (2 f_p) (a pulse
+            that ends after t = 0); default gamma / (2 f_p).
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> pulse = jr.MPPulse(amplitude=0.5, frequency=1.0, gamma=2.0, phase=0.0)
+        >>> float(pulse.end_time), float(pulse.velocity(1.0))  # v(t0) = A
+        (2.0, 0.5)
     """
 
     amplitude: Float[Array, "..."] = parameter("amplitude")
@@ -199,8 +234,25 @@ class MPPulse(AbstractGroundMotion):
 class SinePulse(AbstractGroundMotion):
     """One-sine acceleration pulse, x_g'' = a_p sin(2 pi f_p t) for 0 <= t <= 1 / f_p.
 
-    `amplitude` a_p (m/s^2), `frequency` f_p (Hz) > 0: the pulse of the rocking
-    literature's overturning spectra (Makris & Roussos 2000, type A).
+    The ground acceleration (m/s^2) is zero outside the pulse, which lasts
+    1 / f_p (s); the ground velocity a_p / (2 pi f_p) [1 - cos(2 pi f_p t)]
+    (m/s) returns to zero at its end. It is the pulse of the rocking
+    literature's overturning spectra (Makris & Roussos 2000, type A), which
+    `overturning_spectrum` sweeps.
+
+    Args:
+        amplitude: a_p, the peak acceleration (m/s^2), finite.
+        frequency: f_p, the pulse's frequency (Hz), > 0.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> pulse = jr.SinePulse(amplitude=3.0, frequency=2.0)
+        >>> float(pulse.end_time), float(pulse.acceleration(0.125))
+        (0.5, 3.0)
     """
 
     amplitude: Float[Array, "..."] = parameter("amplitude")
@@ -269,9 +321,29 @@ NEAR_FAULT_PULSES: tuple[str, ...] = tuple(_TABLE_3_1)
 
 
 def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
-    """The pulse fitted to a record of the paper's Table 3.1, e.g. "Northridge JFA/SN".
+    """The Mavroeidis & Papageorgiou pulse fitted to a near-fault record.
 
-    `scale` multiplies the amplitude. `NEAR_FAULT_PULSES` lists the names.
+    The 20 fits of Table 3.1 of the paper, by record name: A (m/s), f_p (Hz),
+    gamma and nu (degrees) of an `MPPulse` that starts at t = 0.
+    `NEAR_FAULT_PULSES` lists the names.
+
+    Args:
+        name: the record, e.g. "Northridge JFA/SN" (event, station and
+            component).
+        scale: the factor (-) on the amplitude A; default 1.
+
+    Returns:
+        The `MPPulse`.
+
+    Raises:
+        ValueError: an unknown `name` (the message lists the known ones).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> jr.near_fault_pulse("Northridge JFA/SN").describe()
+        'MP pulse (A = 0.87 m/s, f_p = 0.33 Hz, gamma = 2.3, nu = 100 deg)'
+        >>> float(jr.near_fault_pulse("Northridge JFA/SN", scale=2.0).amplitude)
+        1.74
     """
     if name not in _TABLE_3_1:
         raise ValueError(

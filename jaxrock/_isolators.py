@@ -30,11 +30,24 @@ from ._trig import sincos
 
 
 class AbstractIsolator(AbstractChecked):
-    """What lies between the ground and the block.
+    """The support of the block: what lies between the ground and the block.
 
-    `n_states` is the size of the base state (0: no base degree of freedom).
-    `free_rocking_closed_form`: once the ground is still, a rocking block's
-    motion has a closed form (maps then finish it without steps, `_free.py`).
+    An isolated base of mass m_b carries the block of mass m, M = m + m_b. The
+    isolator's force F on the base is returned per unit total mass,
+    f = F / M (m/s^2), so the block's mass never appears. The base state holds
+    the displacement u (m, relative to the ground), the velocity u' (m/s) and
+    whatever the isolator's hysteresis needs; `n_states` is its size (0: no
+    base degree of freedom). `free_rocking_closed_form` marks a base on which
+    a rocking block's motion has a closed form once the ground is still
+    (`behavior_map` then finishes it without steps). The bases are
+    `FixedBase`, `LinearIsolator`, `FrictionPendulum` and
+    `IntegratedFrictionPendulum`.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> base = jr.LinearIsolator(period=2.0, damping=0.35, mass_ratio=0.5)
+        >>> isinstance(base, jr.AbstractIsolator), base.n_states
+        (True, 2)
     """
 
     n_states: ClassVar[int]
@@ -81,7 +94,20 @@ class AbstractIsolator(AbstractChecked):
 
 
 class FixedBase(AbstractIsolator):
-    """No isolation: the block stands on the ground (Housner's problem, 1 DOF)."""
+    """No isolation: the block stands on the ground (Housner's problem, 1 DOF).
+
+    The base has no state (`n_states` = 0) and no force, u = 0 at all times:
+    the block rocks under the ground acceleration x_g'' (m/s^2) alone. It is
+    the limit m_b -> infinity of an isolated base. Once the ground is still,
+    free rocking has a closed form, which `behavior_map` uses to finish an
+    analysis without steps.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> base = jr.FixedBase()
+        >>> base.describe(), base.n_states
+        ('fixed base', 0)
+    """
 
     n_states: ClassVar[int] = 0
     free_rocking_closed_form: ClassVar[bool] = True  # Housner's inverted pendulum
@@ -107,11 +133,31 @@ class FixedBase(AbstractIsolator):
 
 
 class LinearIsolator(AbstractIsolator):
-    """Linear viscoelastic isolator, F = k u + c u' (SI).
+    """Linear viscoelastic isolator, F = k u + c u'.
 
-    k = M (2 pi / T_s)^2 and c = 2 xi M (2 pi / T_s): `period` T_s (s) > 0,
-    `damping` xi >= 0 (fraction of critical), `mass_ratio` m / m_b > 0.
-    The paper's values are T_s = 2 s, xi = 0.35, mass ratio 0.5.
+    The stiffness k = M (2 pi / T_s)^2 (N/m) and the damping coefficient
+    c = 2 xi M (2 pi / T_s) (N s/m), with M = m + m_b the total mass of block
+    and base: the base with the block in translation vibrates with period T_s
+    and damping ratio xi. The base state is (u, u'), in m and m/s. The paper's
+    values are T_s = 2 s, xi = 0.35 and a mass ratio of 0.5.
+
+    Args:
+        period: T_s, the isolation period (s), > 0.
+        damping: xi, the damping ratio (fraction of critical, -), >= 0.
+        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Example:
+        >>> import jax.numpy as jnp, jaxrock as jr
+        >>> base = jr.LinearIsolator(period=2.0, damping=0.35, mass_ratio=0.5)
+        >>> base.describe()
+        'linear isolator (T_s = 2 s, xi = 0.35, mass ratio 0.5)'
+        >>> f = base.force(jnp.array([0.1, 0.0]))  # F / M at u = 0.1 m, u' = 0
+        >>> round(float(f), 4)  # (2 pi / T_s)^2 u, in m/s^2
+        0.987
     """
 
     period: Float[Array, "..."] = parameter("period")
@@ -161,14 +207,27 @@ class LinearIsolator(AbstractIsolator):
 
 
 class AbstractFrictionPendulum(AbstractIsolator):
-    """Friction pendulum system with Bouc-Wen hysteresis, F = K u + Q z (SI).
+    """Friction pendulum system with Bouc-Wen hysteresis, F = K u + Q z.
 
-    K = M g / R and Q = mu M g, with `friction` mu >= 0, `radius` R (m) > 0 and
-    Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta,
-    `yield_displacement` Y (m) > 0. The paper uses mu = 0.11, R = 2.24 m and
-    A = 1, gamma = 0.9, beta = 0.1, eta = 2, Y = 0.5 mm. z is stiff: |z'|
-    reaches |u'| / Y. `FrictionPendulum` (eta = 2) has z in closed form,
-    `IntegratedFrictionPendulum` integrates it (any eta >= 1).
+    The pendulum stiffness K = M g / R (N/m) and the friction force
+    Q = mu M g (N), with M = m + m_b the total mass of block and base, the
+    friction coefficient mu and the radius R (m) of the sliding surface. The
+    dimensionless Bouc-Wen variable z obeys
+
+        Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta
+
+    with the yield displacement Y (m). z is stiff: |z'| reaches |u'| / Y.
+    `FrictionPendulum` (eta = 2) has z in closed form;
+    `IntegratedFrictionPendulum` integrates it (any eta >= 1). Both take the
+    parameters mu, R, m / m_b, Y, A, gamma and beta (see `FrictionPendulum`).
+    The paper uses mu = 0.11, R = 2.24 m, a mass ratio of 0.5, A = 1,
+    gamma = 0.9, beta = 0.1, eta = 2 and Y = 0.5 mm.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
+        >>> isinstance(base, jr.AbstractFrictionPendulum), base.eta
+        (True, 2.0)
     """
 
     friction: Float[Array, "..."] = parameter("friction")
@@ -252,22 +311,40 @@ class AbstractFrictionPendulum(AbstractIsolator):
 
 
 class FrictionPendulum(AbstractFrictionPendulum):
-    """Friction pendulum with eta = 2, its Bouc-Wen z exact in closed form.
+    """Friction pendulum, F = K u + Q z, with its Bouc-Wen z exact in closed form.
 
-    Along a monotone stretch of u, Y dz/du = A - c z^2 with c = gamma + beta
-    while |z| grows and beta - gamma while it shrinks, so z is an explicit
-    function of u from the stretch's start (u_r, z_r). The base state is
-    (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which a
-    shrinking |z| passes 0; the memory restarts at each reversal of u' (an
-    event, `condition_reversal`) or where an impact reverses u'. Without the
-    stiff z, steps follow the motion (the paper's map: 5x fewer steps than
-    `IntegratedFrictionPendulum`).
+    K = M g / R (N/m) and Q = mu M g (N) as in `AbstractFrictionPendulum`,
+    with eta = 2. Along a monotone stretch of u, Y dz/du = A - c z^2 with
+    c = gamma + beta while |z| grows and beta - gamma while it shrinks, so z
+    is an explicit function of u from the stretch's start (u_r, z_r). The base
+    state is (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which
+    a shrinking |z| passes 0; the memory restarts at each reversal of u' (an
+    event) or where an impact reverses u'. Without the stiff z, steps follow
+    the motion: on the paper's friction-pendulum map, 5x fewer steps than
+    `IntegratedFrictionPendulum`.
+
+    Args:
+        friction: mu, the friction coefficient (-), >= 0.
+        radius: R, the radius of curvature of the sliding surface (m), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        yield_displacement: Y (m), > 0; default 5e-4.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
 
     Example:
         >>> import jaxrock as jr
         >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
         >>> base.describe()
         'friction pendulum (mu = 0.11, R = 2.24 m, mass ratio 0.5)'
+        >>> state = base.initial_state()  # (u, u', u_r, z_r, w0) at rest
+        >>> state = state.at[0].set(0.01)  # u = 0.01 m = 20 Y past the start
+        >>> round(float(base.hysteretic(state)), 6)  # z: the pendulum slides
+        1.0
     """
 
     eta: ClassVar[float] = 2.0
@@ -318,10 +395,35 @@ class FrictionPendulum(AbstractFrictionPendulum):
 
 
 class IntegratedFrictionPendulum(AbstractFrictionPendulum):
-    """Friction pendulum whose Bouc-Wen z is integrated with the motion, for
-    any exponent `eta` >= 1 (static: each value compiles once); the base state
-    is (u, u', z). Stiff (|z'| reaches |u'| / Y): prefer `FrictionPendulum`
+    """Friction pendulum, F = K u + Q z, its Bouc-Wen z integrated for any eta >= 1.
+
+    K = M g / R (N/m) and Q = mu M g (N), and
+    Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta as in
+    `AbstractFrictionPendulum`. The base state is (u, u', z), in m, m/s and -.
+    z is stiff (|z'| reaches |u'| / Y), so the solver takes steps of the
+    order of Y / |u'| (s) while the base slides: prefer `FrictionPendulum`
     where eta = 2.
+    `eta` is static: each value compiles once.
+
+    Args:
+        friction: mu, the friction coefficient (-), >= 0.
+        radius: R, the radius of curvature of the sliding surface (m), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        yield_displacement: Y (m), > 0; default 5e-4.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+        eta: the Bouc-Wen exponent (-), >= 1; default 2.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=1.5)
+        >>> base.initial_state().shape, base.eta
+        ((3,), 1.5)
     """
 
     eta: float = eqx.field(default=2.0, static=True, converter=float)

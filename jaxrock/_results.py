@@ -18,7 +18,21 @@ from ._misc import (
 
 
 class Outcome(IntEnum):
-    """Outcome of one analysis (the colours of a behavior map)."""
+    """The outcome of one analysis: the colours of a behavior map.
+
+    `Response.outcome` and the maps hold these codes as integers;
+    `Outcome(code).name` names one.
+
+    Attributes:
+        NO_ROCKING: the block never uplifts; it moves with its base (0).
+        ROCKING: the block uplifts at least once and does not overturn (1).
+        OVERTURNED: the block overturns: |theta| reaches pi / 2 rad (2).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> jr.Outcome(2).name, int(jr.Outcome.ROCKING)
+        ('OVERTURNED', 1)
+    """
 
     NO_ROCKING = 0
     ROCKING = 1
@@ -26,7 +40,33 @@ class Outcome(IntEnum):
 
 
 class Status(IntEnum):
-    """How an analysis ended. Anything but SUCCESS means the numbers are not final."""
+    """How an analysis ended: anything but SUCCESS means the numbers are not final.
+
+    `Response.status` and the maps hold these codes as integers;
+    `Status(code).name` names one. A module built from concrete values that
+    are out of range raises `ValueError` at once; one built from traced
+    values (inside `jax.jit`, `jax.vmap` or `jax.jacfwd`) cannot be checked
+    then, and its analysis ends with INVALID_INPUT.
+
+    Attributes:
+        SUCCESS: the analysis reached its end: the end of the window
+            (`duration`, s), an overturn, or a state from which nothing more
+            can happen (0).
+        MAX_STEPS: a segment hit the solver's step limit, `max_steps` (1).
+        MAX_SEGMENTS: the analysis hit `max_segments` before its end (2).
+        SOLVER_FAILED: the step-size controller or the event root finder
+            failed, or an event was missed: |theta| passed pi / 2 rad without
+            an overturn (3).
+        INVALID_INPUT: a parameter out of its range in a module built from
+            traced values, which the checks at construction cannot see; the
+            float results (max_rotation, max_base_displacement, uplift_time)
+            are NaN (4).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> jr.Status(3).name, int(jr.Status.INVALID_INPUT)
+        ('SOLVER_FAILED', 4)
+    """
 
     SUCCESS = 0
     MAX_STEPS = 1  # a segment hit the solver's step limit (`max_steps`)
@@ -41,7 +81,35 @@ class Status(IntEnum):
 
 
 class EventKind(IntEnum):
-    """What ended a segment (reported in `History.event_kinds`)."""
+    """What ended a segment of an analysis: the events of a `History`.
+
+    An analysis is a sequence of segments, each integrated until an event.
+    `History.event_kinds` holds the events' names in lower case ("uplift",
+    "impact", ...); END, the end of the window, is not listed there.
+
+    Attributes:
+        END: the segment reached the end of the window (`duration`, s).
+        UPLIFT: the block uplifts: the absolute base acceleration
+            |u'' + x_g''| reaches g tan(alpha) (m/s^2).
+        APEX: theta' = 0 rad/s while |theta| grows: the block turns back.
+        IMPACT: theta = 0 rad while falling: an impact, then re-uplift about
+            the other corner.
+        REST: an impact after which rocking ends (the rest rule of
+            `SolverOptions`): the block moves with its base again.
+        OVERTURN: |theta| reaches pi / 2 rad.
+        REVERSAL: theta' changes sign before theta reaches 0 (the block
+            rises again about the same corner).
+        BASE_PEAK: a new maximum of |u| (m) of an isolated base (with z in
+            closed form, any reversal of u').
+        FAILURE: the segment's solve failed (see `Status`).
+        QUIET: the ground is still and the energy left can neither uplift the
+            block nor raise max |u|: the analysis ends early.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> jr.EventKind(3).name.lower(), int(jr.EventKind.OVERTURN)
+        ('impact', 5)
+    """
 
     END = 0
     UPLIFT = 1
@@ -75,18 +143,48 @@ def max_steps_for(motion, max_steps: int | None) -> int:
 
 
 class SolverOptions(AbstractChecked):
-    """Numerical options. Tolerances are traced (new values do not recompile);
-    the solver, `step` being set or not, and the limits are static.
+    """The numerical options of an analysis.
 
-    `rtol`, `atol`: PID tolerances. `solver`: a Diffrax solver (default Tsit5).
-    `step`: a fixed step (s) instead of the PID controller; events are then
-    located at step ends only (no root find), the naive baseline of the
-    work-precision study. `max_steps`: step limit of one segment.
-    `max_segments`: limit on the segments (events) of one analysis.
-    `rest_tolerance`: the rest rule against Zeno chattering: rocking ends at an
-    impact when the rebound could lift the block by less than
-    `rest_tolerance * alpha`, estimated as theta'+^2 / (2 p^2 sin alpha) (free
-    rocking from theta = 0), or when e <= 0 (Eq. 2.13).
+    `simulate` and `behavior_map` build one from their keywords;
+    `jaxrock.design.responses` and `jaxrock.design.isolator_objective` take
+    one. The tolerances are traced (new values do not recompile); the solver,
+    whether `step` is set, and the limits are static. The rest rule, against
+    Zeno chattering, ends rocking at an impact when the coefficient of
+    restitution e = theta'+ / theta'- of the impact is <= 0 (Eq. 2.13 of the
+    paper), or when the rebound could lift the block by less than
+    `rest_tolerance` alpha (rad), estimated as theta'+^2 / (2 p^2 sin alpha)
+    from the velocity theta'+ (rad/s) after the impact (free rocking from
+    theta = 0, linearized).
+
+    Args:
+        rtol: the relative tolerance of the PID step-size controller (-),
+            > 0; default 1e-8.
+        atol: the absolute tolerance (in the state's units: rad, rad/s, m,
+            m/s), > 0; default 1e-10.
+        max_steps: the step limit of one segment, an integer >= 1; default
+            16384.
+        max_segments: the limit on the segments (events) of one analysis, an
+            integer >= 1; default 2000.
+        rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
+            >= 0; default 1e-6.
+        solver: a Diffrax solver; default `diffrax.Tsit5()`.
+        step: a fixed step (s), > 0, instead of the PID controller; events are
+            then located at step ends only (no root find), a naive baseline
+            for comparisons. Default None.
+
+    Raises:
+        ValueError: a concrete tolerance or step out of its range, or a limit
+            that is not an integer >= 1 (the message names it).
+
+    Example:
+        >>> import jaxrock as jr
+        >>> opts = jr.SolverOptions(rtol=1e-6, atol=1e-8)
+        >>> float(opts.rtol), opts.max_steps, opts.max_segments
+        (1e-06, 16384, 2000)
+        >>> jr.SolverOptions(max_segments=0)
+        Traceback (most recent call last):
+        ...
+        ValueError: `max_segments` must be an integer >= 1, got 0
     """
 
     rtol: Float[Array, ""] = parameter("rtol", default=RTOL)
@@ -119,7 +217,83 @@ class SolverOptions(AbstractChecked):
 
 
 class History(eqx.Module):
-    """Time histories of one analysis (SI units), sampled and at every event."""
+    """The time histories of one analysis, from `simulate(..., history=True)`.
+
+    Rows are sampled every `history_step` (s) and at every event; at an event
+    two rows share its time, the state just before the transition and the
+    state just after it. Every array but `event_times` holds one value per
+    row (NumPy arrays).
+
+    Attributes:
+        t: the time (s).
+        theta: the block's rotation (rad): > 0 rocking about the corner at
+            x = +b, < 0 about the corner at x = -b.
+        theta_dot: theta' (rad/s).
+        u: the base's displacement relative to the ground (m); 0 on a fixed
+            base.
+        u_dot: u' (m/s).
+        z: the Bouc-Wen variable of a friction pendulum (-); 0 on other bases.
+        regime: 0 in translation, +1 or -1 rocking about the corner at x = +b
+            or x = -b.
+        ground_acceleration: x_g''(t) (m/s^2).
+        event_times: the times of the events (s), one per event.
+        event_kinds: the events' `EventKind` names in lower case ("uplift",
+            "apex", "impact", ...), one per event.
+        alpha: the block's alpha (rad), to plot theta / alpha.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
+        ...                 jr.near_fault_pulse("San Fernando PCD/SN"), history=True)
+        >>> r.history.event_kinds
+        ('uplift', 'apex', 'impact', 'overturn')
+        >>> r.history.event_times.round(2)
+        array([0.72, 1.33, 1.58, 2.68])
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    u: np.ndarray
+    u_dot: np.ndarray
+    z: np.ndarray
+    regime: np.ndarray  # 0 translation, +1 / -1 rocking about x = +b / -b
+    ground_acceleration: np.ndarray
+    event_times: np.ndarray
+    event_kinds: tuple[str, ...]
+    alpha: float  # the block's alpha (rad), to plot theta / alpha
+
+
+class Response(eqx.Module):
+    """The result of one analysis (`simulate`), or of a batch of analyses.
+
+    Scalars (0-d arrays) for `simulate`; arrays with the batch's leading axes
+    under `jax.vmap` or from `jaxrock.design.responses`. Read `status` first:
+    anything but `Status.SUCCESS` means the numbers are not final.
+
+    Attributes:
+        outcome: the `Outcome` code.
+        max_rotation: max |theta| / alpha (-), pi / (2 alpha) when the block
+            overturns.
+        max_base_displacement: max |u| (m), the base's peak displacement
+            relative to the ground; 0 on a fixed base.
+        impacts: the number of impacts, that after which rocking ends
+            included.
+        uplift_time: the time of the first uplift (s); NaN if none.
+        status: the `Status` code.
+        steps: the solver's steps over all segments.
+        segments: the segments of the analysis (one per event).
+        history: a `History` with `simulate(..., history=True)`, else None.
+
+    Example:
+        >>> import jaxrock as jr
+        >>> r = jr.simulate(jr.Block(6.0, 1.0), jr.FixedBase(),
+        ...                 jr.near_fault_pulse("Northridge JFA/SN"))
+        >>> jr.Status(int(r.status)).name, jr.Outcome(int(r.outcome)).name
+        ('SUCCESS', 'ROCKING')
+        >>> round(float(r.max_rotation), 3), round(float(r.uplift_time), 3)
+        (0.165, 3.228)
+    """
 
     t: np.ndarray
     theta: np.ndarray
@@ -156,10 +330,37 @@ class Response(eqx.Module):
 
     @property
     def ok(self):
+        """Whether the analysis succeeded: `status == Status.SUCCESS` (a bool array).
+
+        Of a batch, one value per analysis.
+
+        Example:
+            >>> import jaxrock as jr
+            >>> r = jr.simulate(jr.Block(6.0, 1.0), jr.FixedBase(),
+            ...                 jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> bool(r.ok)
+            True
+        """
         return self.status == Status.SUCCESS
 
     def summary(self) -> str:
-        """One line: outcome, max rotation, max base displacement, impacts."""
+        """One line: the outcome, max |theta| / alpha, max |u|, impacts, first uplift.
+
+        Of one analysis (scalar fields). Lengths are in m and times in s; a
+        status other than SUCCESS is flagged as not converged, and
+        INVALID_INPUT explained.
+
+        Returns:
+            The line, a str.
+
+        Example:
+            >>> import jaxrock as jr
+            >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
+            ...                 jr.near_fault_pulse("San Fernando PCD/SN"))
+            >>> print(r.summary())  # doctest: +NORMALIZE_WHITESPACE
+            OVERTURNED: max|theta|/alpha = 6.41197, max|u| = 0 m, impacts = 1,
+            uplift at 0.715262 s
+        """
         if int(self.status) == Status.INVALID_INPUT:
             return (
                 "INVALID_INPUT: a parameter of the block, base, motion or options "
