@@ -29,7 +29,7 @@ class Block(AbstractChecked):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> block = jr.Block(slenderness=4.0, size=1.0)
         >>> round(float(block.alpha), 4), round(float(block.p), 4)

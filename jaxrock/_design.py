@@ -66,11 +66,34 @@ def responses(
     duration=None,
     opts: SolverOptions = SolverOptions(),
 ) -> Response:
-    """`run` for every (block, motion) pair, vmapped: fields of shape
-    (n_blocks, n_motions).
+    """The analysis of every (block, motion) pair on one base, vmapped.
 
-    Traceable (use under `jax.jit` and `jax.jacfwd`); `blocks` and `motions` carry
-    one batch axis (a `Record` is shared by all blocks).
+    Each pair is the analysis of `simulate` (without histories), all pairs
+    under one `jax.vmap`. Traceable: use it under `jax.jit` and `jax.jacfwd`
+    (`isolator_objective` does). The parameters are not checked here: a module
+    built from traced values with a parameter out of its range gives
+    `Status.INVALID_INPUT` and NaN results.
+
+    Args:
+        base: the base, without batch axes.
+        blocks: the blocks, with one batch axis (n_blocks) or none.
+        motions: the ground motions, with one batch axis (n_motions) or none;
+            or one `Record`, shared by all blocks.
+        duration: the length of every analysis (s); default the latest end of
+            the motions plus 5 s.
+        opts: the numerical options (`SolverOptions`).
+
+    Returns:
+        A `Response` whose fields have shape (n_blocks, n_motions).
+
+    Examples:
+        >>> import jax.numpy as jnp, jaxrock as jr
+        >>> from jaxrock.design import responses
+        >>> blocks = jr.Block(jnp.array([4.0, 6.0]), 1.0)
+        >>> pulses = jr.MPPulse(jnp.array([0.6, 0.8]), 2.0, 2.0, 0.0)
+        >>> r = responses(jr.LinearIsolator(1.5, 0.2, 0.5), blocks, pulses)
+        >>> r.max_rotation.shape, r.max_rotation.round(3).tolist()
+        ((2, 2), [[0.0, 0.0], [0.001, 0.068]])
     """
     lane_blocks, lane_motions, shape = _pairs(blocks, motions)
     if duration is None:
@@ -97,11 +120,44 @@ def isolator_objective(
     penalty: float = 10.0,
     opts: SolverOptions = SolverOptions(),
 ) -> Callable[[dict], tuple]:
-    """J = mean(max|theta|/alpha) + penalty mean(max(0, max|u| / capacity - 1)^2).
+    """The design objective of an isolator over blocks x motions.
 
-    Averages over every (block, motion) pair; `capacity` (m) is the isolator's
-    displacement capacity, enforced by the quadratic penalty. Returns a function
-    params -> (J, Response) for `jax.jacfwd(..., has_aux=True)`.
+    J = mean(max|theta| / alpha) + penalty mean(max(0, max|u| / capacity - 1)^2),
+    both means over every (block, motion) pair (`responses`): the mean peak
+    rotation, normalised by each block's alpha (an overturned block counts
+    pi / (2 alpha)), plus a quadratic penalty on the peak base displacements
+    max|u| (m) beyond the isolator's displacement capacity (m). J is
+    dimensionless. Derivatives are forward mode (`jax.jacfwd`); where an
+    outcome or an impact count changes under a small change of the
+    parameters, or a block overturns, J is not differentiable and the
+    derivative is that of the branch the evaluation took.
+
+    Args:
+        make_base: builds the isolator from a dict of parameters (name ->
+            scalar, in the parameter's units, e.g. a period in s).
+        blocks: the blocks, with one batch axis or none.
+        motions: the ground motions, with one batch axis or none; or one
+            `Record`, shared by all blocks.
+        capacity: the isolator's displacement capacity (m); default 0.3.
+        penalty: the weight of the penalty (-); default 10.
+        opts: the numerical options (`SolverOptions`).
+
+    Returns:
+        A function params -> (J, Response), for
+        `jax.jacfwd(..., has_aux=True)`; the `Response` has fields of shape
+        (n_blocks, n_motions).
+
+    Examples:
+        >>> import jax, jax.numpy as jnp, jaxrock as jr
+        >>> from jaxrock.design import isolator_objective
+        >>> blocks = jr.Block(jnp.array([4.0, 6.0]), 1.0)
+        >>> pulses = jr.MPPulse(jnp.array([0.6, 0.8]), 2.0, 2.0, 0.0)
+        >>> J = isolator_objective(
+        ...     lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
+        ...     blocks, pulses)
+        >>> grad, r = jax.jacfwd(J, has_aux=True)({"period": 1.5, "damping": 0.2})
+        >>> {k: round(float(v), 3) for k, v in grad.items()}  # period: per s
+        {'damping': 0.323, 'period': -0.173}
     """
 
     def objective(params):
@@ -151,12 +207,39 @@ def _check_design(init, bounds, capacity, penalty, steps, learning_rate) -> list
 
 
 class DesignResult(eqx.Module):
-    """History of an isolator optimisation, one row per evaluated iterate.
+    """The iterates of an isolator optimisation (`tune_isolator`), one row each.
 
-    params: name -> array (steps + 1,); objective (steps + 1,); gradient: name ->
-    dJ/dp (steps + 1,) in the parameter's units; max_rotation,
-    max_base_displacement, overturned: (steps + 1, n_blocks, n_motions); best:
-    the parameters with the lowest objective.
+    Row i holds the parameters after i updates and what they give: `steps`
+    updates give steps + 1 rows. J is the dimensionless objective of
+    `isolator_objective`. Check `overturned` (and the impact counts) before
+    trusting a gradient: where a block overturns, its rotation is the
+    constant pi / (2 alpha).
+
+    Attributes:
+        params: name -> the parameter's values (in its units), shape
+            (steps + 1,).
+        objective: J (-), shape (steps + 1,).
+        gradient: name -> dJ/dp (per unit of the parameter, e.g. 1/s for a
+            period), shape (steps + 1,).
+        max_rotation: max |theta| / alpha (-), shape
+            (steps + 1, n_blocks, n_motions).
+        max_base_displacement: max |u| (m), same shape.
+        overturned: whether each block overturned (bool), same shape.
+        best: the parameters with the lowest objective, name -> float.
+
+    Examples:
+        >>> import jax.numpy as jnp, jaxrock as jr
+        >>> from jaxrock.design import tune_isolator
+        >>> result = tune_isolator(
+        ...     lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
+        ...     {"period": 1.5, "damping": 0.2},
+        ...     jr.Block(jnp.array([4.0, 6.0]), 1.0),
+        ...     jr.MPPulse(jnp.array([0.6, 0.8]), 2.0, 2.0, 0.0),
+        ...     bounds={"period": (1.0, 3.0), "damping": (0.05, 0.5)},
+        ...     steps=1,
+        ... )
+        >>> result.params["period"], result.max_rotation.shape
+        (array([1.5, 1.6]), (2, 2, 2))
     """
 
     params: dict
@@ -205,14 +288,62 @@ def tune_isolator(
 ) -> DesignResult:
     """Minimise `isolator_objective` over the parameters in `init` with Optax.
 
-    `make_base(params)` builds the isolator from a dict of scalars (e.g.
-    `lambda p: LinearIsolator(p["period"], p["damping"], 0.5)`); `bounds` maps
-    each name to (low, high), enforced by projection after every update. The
-    default optimiser is Adam on parameters scaled by their bounds' width, so one
-    learning rate suits seconds and damping ratios alike. Gradients are forward
-    mode through the whole simulation; one compile per isolator type, number of
-    design variables and shapes, shared by every `make_base` (a new lambda
-    does not recompile).
+    Gradient descent on the dimensionless objective J of `isolator_objective`,
+    with gradients in forward mode through the whole simulation. The
+    parameters are scaled to [0, 1] by their bounds and projected onto them
+    after every update; the default optimiser is Adam on the scaled
+    parameters, so one learning rate suits periods (s) and damping ratios (-)
+    alike. One compile per isolator type, number of design variables and
+    shapes, shared by every `make_base` (a new lambda does not recompile).
+
+    Args:
+        make_base: builds the isolator from a dict of scalars, e.g.
+            `lambda p: LinearIsolator(p["period"], p["damping"], 0.5)`; it
+            must return an isolated base.
+        init: the starting parameters, name -> value (in the parameter's
+            units, e.g. s for a period), each within its bounds.
+        blocks: the blocks, with one batch axis or none.
+        motions: the ground motions, with one batch axis or none; or one
+            `Record`, shared by all blocks.
+        bounds: name -> (low, high) for every name of `init`, low < high, in
+            the parameter's units.
+        capacity: the isolator's displacement capacity (m), > 0; default 0.3.
+        penalty: the weight of the penalty (-), >= 0; default 10.
+        steps: the number of updates, an integer >= 0 (steps + 1
+            evaluations); default 30.
+        learning_rate: Adam's learning rate on the scaled parameters (-),
+            > 0; default 0.05.
+        optimizer: an Optax optimiser of the scaled parameters; default
+            `optax.adam(learning_rate)`.
+        rtol: the integrator's relative tolerance (-); default 1e-8.
+        atol: the integrator's absolute tolerance (in the state's units: rad,
+            rad/s, m, m/s); default 1e-10.
+
+    Returns:
+        A `DesignResult` with every evaluated iterate and the best parameters.
+
+    Raises:
+        ValueError: an `init` or `bounds` that is not a dict of finite real
+            numbers for the same names, a bound with low >= high, a starting
+            value outside its bounds, a `capacity`, `penalty`,
+            `learning_rate` or `steps` out of its range, or a `make_base`
+            that does not return an isolated base.
+
+    Examples:
+        >>> import jax.numpy as jnp, jaxrock as jr
+        >>> from jaxrock.design import tune_isolator
+        >>> result = tune_isolator(
+        ...     lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
+        ...     {"period": 1.5, "damping": 0.2},
+        ...     jr.Block(jnp.array([4.0, 6.0]), 1.0),
+        ...     jr.MPPulse(jnp.array([0.6, 0.8]), 2.0, 2.0, 0.0),
+        ...     bounds={"period": (1.0, 3.0), "damping": (0.05, 0.5)},
+        ...     steps=3,
+        ... )
+        >>> result.objective.round(4)
+        array([0.0172, 0.0023, 0.0001, 0.    ])
+        >>> {k: round(v, 3) for k, v in result.best.items()}
+        {'damping': 0.145, 'period': 1.743}
     """
     names = _check_design(init, bounds, capacity, penalty, steps, learning_rate)
     lo = {k: float(bounds[k][0]) for k in names}

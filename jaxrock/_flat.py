@@ -38,15 +38,6 @@ _NEWTON = 8
 _CONVERGED = 4 * float(np.finfo(np.float64).eps)
 
 
-def _clip(t0, t1, times):
-    """The first of `times` after t0, if it comes before t1 (Diffrax's step_ts)."""
-    if times is None:
-        return t1
-    i = jnp.searchsorted(times, t0, side="right")
-    nxt = times[jnp.minimum(i, times.shape[0] - 1)]
-    return jnp.where((i < times.shape[0]) & (nxt < t1), nxt, t1)
-
-
 def _unrollable(solver) -> bool:
     """An explicit Runge-Kutta method given by a Butcher tableau."""
     return isinstance(solver, diffrax.AbstractERK) and solver.tableau.c1 == 0
@@ -124,7 +115,9 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     solver = opts.solver
     t0, y0 = c.t, c.y
     t1 = jnp.minimum(t0 + jnp.minimum(c.dt, dtmax), t_stop)
-    t1 = _clip(t0, _clip(t0, t1, motion.step_ts), motion.jump_ts)
+    kink = motion.next_kink(t0)
+    if kink is not None:
+        t1 = jnp.minimum(t1, kink)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
     if _unrollable(solver):
         y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args)

@@ -42,8 +42,34 @@ def _peaks(motion: AbstractGroundMotion, samples: int = 20001):
 def fit_lognormal(im, failed, steps: int = 2000):
     """Maximum-likelihood lognormal fit, P(failure | IM) = Phi(ln(IM / median) / beta).
 
-    `im` > 0 and `failed` (bool) are 1-D. Returns (median, beta); NaN when every
-    or no analysis failed (the likelihood has no maximum then).
+    Phi is the standard normal distribution function, the median is in the
+    units of the intensity measure IM (e.g. m/s^2 for a PGA) and beta (-) is
+    the standard deviation of ln IM. (ln median, ln beta) minimise the
+    negative log-likelihood of the binary outcomes by `steps` iterations of
+    Adam (learning rate 0.05), from the mean of ln IM and beta = 0.5.
+
+    Args:
+        im: the intensity measure of each analysis (any unit), a 1-D array of
+            values > 0.
+        failed: whether each analysis failed (bool), a 1-D array of the same
+            length.
+        steps: the number of Adam iterations; default 2000.
+
+    Returns:
+        (median, beta) as floats; both NaN when every or no analysis failed
+        (the likelihood has no maximum then).
+
+    Raises:
+        ValueError: `im` and `failed` that are not 1-D arrays of one length,
+            or an `im` that is not finite and > 0.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> im = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0]  # PGA (m/s^2)
+        >>> failed = [False, False, True, False, True, False, True, True]
+        >>> median, beta = jr.fit_lognormal(im, failed)
+        >>> round(median, 2), round(beta, 2)
+        (2.0, 0.68)
     """
     im = np.asarray(im, dtype=float)
     failed = np.asarray(failed, dtype=bool)
@@ -80,11 +106,40 @@ def _fit(x, y, steps):
 
 
 class Fragility(eqx.Module):
-    """An ensemble's results: one row per motion.
+    """The results of `fragility`: one row per analysis, and lognormal fits.
 
-    `im` is the intensity measure (`measure`: "pga" in m/s^2, "pgv" in m/s, or
-    "pga_ratio" = PGA / (g tan alpha)); `rocked` and `overturned` per motion;
-    lognormal fits (`median`, `beta`) of P(rocking) and P(overturning).
+    Each row is one analysis of the block under one motion of the ensemble,
+    at one scale. P(rocking | IM) and P(overturning | IM) are fitted as
+    Phi(ln(IM / median) / beta) by maximum likelihood over the analyses whose
+    status is SUCCESS (`fit_lognormal`); `probability` evaluates the fits.
+
+    Attributes:
+        im: the intensity measure of each analysis, in the units of
+            `measure`.
+        rocked: whether each analysis rocked, overturning included (bool).
+        overturned: whether each analysis overturned (bool).
+        status: the `Status` codes.
+        measure: "pga" (m/s^2), "pgv" (m/s) or "pga_ratio", the
+            dimensionless PGA / (g tan alpha).
+        median_rocking: the median of the fit of P(rocking), in the units of
+            `im`; NaN when every or no analysis rocked.
+        beta_rocking: the fit's standard deviation of ln IM (-); NaN likewise.
+        median_overturning: the median of the fit of P(overturning), in the
+            units of `im`; NaN when every or no analysis overturned.
+        beta_overturning: the fit's standard deviation of ln IM (-); NaN
+            likewise.
+        motion_index: the motion of the ensemble (before scaling) of each row.
+        motion_names: the records' names of a suite; None otherwise.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+        >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
+        ...                     scales=[0.2, 0.4, 0.6, 0.8, 1.0, 1.2])
+        >>> frag.im.round(2)  # PGA (m/s^2)
+        array([0.87, 1.74, 2.61, 3.48, 4.35, 5.22])
+        >>> frag.rocked.astype(int), frag.overturned.astype(int)
+        (array([0, 0, 1, 1, 1, 1]), array([0, 0, 0, 1, 1, 1]))
     """
 
     im: np.ndarray
@@ -147,7 +202,7 @@ def fragility(
         ValueError: an unknown measure, `scales` not all > 0, a single
             unscaled motion, or a motion that does not move the ground.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
         >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
@@ -165,8 +220,6 @@ def fragility(
             "`motions` must be an ensemble (a suite of records or a batched pulse), "
             "or give `scales`"
         )
-    bm = behavior_map([slenderness], [size], base, motions, **map_options)
-    outcome = bm.outcome.reshape(-1)
     pga, pgv = _peaks(motions)
     if not (np.all(pga > 0) and np.all(pgv > 0)):
         raise ValueError(
@@ -174,6 +227,8 @@ def fragility(
             f"> 0): {int(np.sum(~((pga > 0) & (pgv > 0))))} of them have zero "
             "amplitude"
         )
+    bm = behavior_map([slenderness], [size], base, motions, **map_options)
+    outcome = bm.outcome.reshape(-1)
     pga = np.broadcast_to(pga, outcome.shape)
     pgv = np.broadcast_to(pgv, outcome.shape)
     im = {"pga": pga, "pgv": pgv, "pga_ratio": pga * slenderness / GRAVITY}[measure]

@@ -30,7 +30,7 @@ class AbstractGroundMotion(AbstractChecked):
     `MPPulse`, `SinePulse` and `Record`. Their parameters may carry batch axes
     (an ensemble of motions, for `behavior_map` and `fragility`).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> motion = jr.SinePulse(amplitude=3.0, frequency=2.0)
         >>> isinstance(motion, jr.AbstractGroundMotion), float(motion.end_time)
@@ -46,20 +46,12 @@ class AbstractGroundMotion(AbstractChecked):
     def end_time(self) -> Float[Array, ""]:
         """When the excitation ends (s)."""
 
-    @property
-    def step_ts(self) -> Float[Array, " k"] | None:
-        """Kinks of x_g'' (s): the integrator never steps across them.
-
-        None for the pulses: x_g'' is continuous and its slope has kinks only at
-        the pulse's start (t = 0 by default) and end, where segments stop anyway
-        (a later start is left to the error control, cheaper than clipping every
-        step).
-        """
-        return None
-
-    @property
-    def jump_ts(self) -> Float[Array, " k"] | None:
-        """Discontinuities of x_g'' (s): the integrator restarts after them."""
+    def next_kink(self, t: Float[Array, ""]) -> Float[Array, ""] | None:
+        """The first kink of x_g'' after t (s; inf past the last): no step
+        crosses one. None where x_g'' is smooth: a pulse's only kinks are its
+        start and end, where segments stop anyway (a later start is left to
+        the error control, cheaper than clipping every step)."""
+        del t
         return None
 
     @property
@@ -124,7 +116,7 @@ class MPPulse(AbstractGroundMotion):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> pulse = jr.MPPulse(amplitude=0.5, frequency=1.0, gamma=2.0, phase=0.0)
         >>> float(pulse.end_time), float(pulse.velocity(1.0))  # v(t0) = A
@@ -248,7 +240,7 @@ class SinePulse(AbstractGroundMotion):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> pulse = jr.SinePulse(amplitude=3.0, frequency=2.0)
         >>> float(pulse.end_time), float(pulse.acceleration(0.125))
@@ -338,7 +330,7 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
     Raises:
         ValueError: an unknown `name` (the message lists the known ones).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> jr.near_fault_pulse("Northridge JFA/SN").describe()
         'MP pulse (A = 0.87 m/s, f_p = 0.33 Hz, gamma = 2.3, nu = 100 deg)'

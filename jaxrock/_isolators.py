@@ -43,7 +43,7 @@ class AbstractIsolator(AbstractChecked):
     `FixedBase`, `LinearIsolator`, `FrictionPendulum` and
     `IntegratedFrictionPendulum`.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> base = jr.LinearIsolator(period=2.0, damping=0.35, mass_ratio=0.5)
         >>> isinstance(base, jr.AbstractIsolator), base.n_states
@@ -102,7 +102,7 @@ class FixedBase(AbstractIsolator):
     free rocking has a closed form, which `behavior_map` uses to finish an
     analysis without steps.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> base = jr.FixedBase()
         >>> base.describe(), base.n_states
@@ -150,7 +150,7 @@ class LinearIsolator(AbstractIsolator):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jax.numpy as jnp, jaxrock as jr
         >>> base = jr.LinearIsolator(period=2.0, damping=0.35, mass_ratio=0.5)
         >>> base.describe()
@@ -223,7 +223,7 @@ class AbstractFrictionPendulum(AbstractIsolator):
     The paper uses mu = 0.11, R = 2.24 m, a mass ratio of 0.5, A = 1,
     gamma = 0.9, beta = 0.1, eta = 2 and Y = 0.5 mm.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
         >>> isinstance(base, jr.AbstractFrictionPendulum), base.eta
@@ -336,7 +336,7 @@ class FrictionPendulum(AbstractFrictionPendulum):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
         >>> base.describe()
@@ -419,7 +419,7 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         ValueError: a concrete parameter that is not a real number or lies
             outside its range (the message names the parameter and the range).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=1.5)
         >>> base.initial_state().shape, base.eta

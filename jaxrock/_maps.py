@@ -240,13 +240,49 @@ def _map_chunk(
 
 
 class BehaviorMap(eqx.Module):
-    """Results over a grid: arrays of shape (n_slenderness, n_size).
+    """The results of `behavior_map`: one analysis per block of a grid.
 
-    `outcome` holds `Outcome` codes and `status` `Status` codes per cell; the other
-    fields are those of `Response`. `base` and `motion` describe what produced it;
-    `seconds` is the wall time of the computation (compilation included on a
-    first call); `lane_efficiency` the share of the executed lane-steps that
-    advanced an unfinished analysis (vmapped lanes wait for the slowest one).
+    The grid's cells are the blocks (slenderness lambda = h / b, size r in m)
+    of `slenderness` x `size`. Every per-cell field has shape
+    (..., n_slenderness, n_size), with leading axes for a batch of bases, then
+    of motions; it holds the value of the same field of `Response` for that
+    cell. `save` writes a map to a file and `load` reads it back.
+
+    Attributes:
+        slenderness: the grid's values of lambda = h / b (-), 1-D.
+        size: the grid's values of r, the half-diagonal (m), 1-D.
+        outcome: the `Outcome` codes.
+        max_rotation: max |theta| / alpha (-), pi / (2 alpha) where the block
+            overturns.
+        max_base_displacement: max |u| (m); 0 on a fixed base.
+        impacts: the numbers of impacts.
+        uplift_time: the time of the first uplift (s); NaN where none.
+        status: the `Status` codes; anything but SUCCESS marks a cell whose
+            numbers are not final.
+        steps: the solver's steps of each analysis (on a fixed base, of its
+            integrated part: free rocking after the excitation is finished in
+            closed form).
+        segments: the segments (events) of each analysis.
+        base: a description of the base.
+        motion: a description of the motion.
+        seconds: the wall time of the computation (s), compilation included on
+            a first call.
+        lane_efficiency: the share (0 to 1) of the executed lane-steps that
+            advanced an unfinished analysis (vmapped lanes wait for the
+            slowest one).
+        motion_names: the records' names of a map under a suite of records
+            (its leading motion axis); None otherwise.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+        ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+        >>> bm.outcome
+        array([[0, 0],
+               [2, 1]])
+        >>> bm.max_rotation.round(3)
+        array([[0.   , 0.   ],
+               [9.511, 0.036]])
     """
 
     slenderness: np.ndarray
@@ -285,12 +321,40 @@ class BehaviorMap(eqx.Module):
         )
 
     def counts(self) -> dict[str, int]:
-        """Cells per outcome, plus cells whose analysis did not converge."""
+        """The number of cells per outcome, and of cells that did not converge.
+
+        Returns:
+            A dict: "no_rocking", "rocking" and "overturned" count the cells of
+            each `Outcome`; "not_converged" the cells whose status is not
+            SUCCESS (counted under their outcome as well).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> bm.counts()
+            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'not_converged': 0}
+        """
         out = {o.name.lower(): int(np.sum(self.outcome == o)) for o in Outcome}
         out["not_converged"] = int(np.sum(self.status != Status.SUCCESS))
         return out
 
     def summary(self) -> str:
+        """One line: the analyses, their wall time (s) and the cells per outcome.
+
+        Cells that did not converge are flagged; the motion and the base close
+        the line.
+
+        Returns:
+            The line, a str.
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> print(bm.summary())  # doctest: +ELLIPSIS
+            4 analyses in ... s: 2 no rocking, 1 rocking, 1 overturned [MP pulse ...]
+        """
         c = self.counts()
         text = (
             f"{self.outcome.size} analyses in {self.seconds:.2f} s: "
@@ -302,7 +366,24 @@ class BehaviorMap(eqx.Module):
         return text + f" [{self.motion}; {self.base}]"
 
     def save(self, path) -> None:
-        """Write the arrays and metadata to an `.npz` file."""
+        """Write the map to a compressed NumPy `.npz` file.
+
+        The file holds every array and the metadata (base, motion, seconds,
+        lane_efficiency, motion_names); `BehaviorMap.load` reads it back.
+
+        Args:
+            path: the file's path (str or path-like); NumPy appends `.npz` to
+                a name without it.
+
+        Examples:
+            >>> import os, tempfile, jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> path = os.path.join(tempfile.mkdtemp(), "map.npz")
+            >>> bm.save(path)
+            >>> jr.BehaviorMap.load(path).counts() == bm.counts()
+            True
+        """
         meta = json.dumps(
             {
                 "base": self.base,
@@ -317,11 +398,28 @@ class BehaviorMap(eqx.Module):
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
-        """Read a map written by `save`.
+        """Read a map written by `BehaviorMap.save`.
 
-        Raises `ValueError` naming the file if it is not such a map: unreadable,
-        truncated, missing arrays or metadata, arrays whose shapes disagree, or
-        outcome and status codes out of range.
+        Args:
+            path: the `.npz` file's path (str or path-like).
+
+        Returns:
+            The `BehaviorMap`, with the arrays and metadata saved.
+
+        Raises:
+            ValueError: the file is not such a map (the message names it):
+                missing, unreadable or truncated, without some arrays or
+                metadata, with arrays whose shapes disagree, or with outcome or
+                status codes out of range.
+
+        Examples:
+            >>> import os, tempfile, jaxrock as jr
+            >>> path = os.path.join(tempfile.mkdtemp(), "map.npz")
+            >>> jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                 jr.near_fault_pulse("Northridge JFA/SN")).save(path)
+            >>> bm = jr.BehaviorMap.load(path)
+            >>> bm.outcome.shape, bm.base
+            ((2, 2), 'fixed base')
         """
         names = ("slenderness", "size") + _FIELDS
         try:

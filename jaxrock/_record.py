@@ -43,7 +43,7 @@ class Record(AbstractGroundMotion):
     direction, degrees clockwise from north; None if unknown) and `rsn` (the
     PEER record sequence number; None if unknown). Of a suite, tuples.
 
-    Example:
+    Examples:
         >>> import numpy as np, jaxrock as jr
         >>> t = np.arange(0.0, 10.0, 0.01)
         >>> rec = jr.Record(3.0 * np.sin(2 * np.pi * t), 0.01, name="sine")
@@ -235,16 +235,16 @@ class Record(AbstractGroundMotion):
     def end_time(self):
         return (self.length - 1) * self.dt
 
-    @property
-    def step_ts(self):
-        # Sample times; none past the record's own end (padding).
-        k = jnp.arange(self.samples.shape[-1])
-        return jnp.where(k < self.length, self.dt * k, jnp.inf)
-
-    @property
-    def jump_ts(self):
-        # x_g'' drops from the last sample to zero.
-        return self.end_time[None]
+    def next_kink(self, t):
+        """The first sample time after t (the same floats as dt * k), found
+        from t alone: the cost of a step does not grow with the record."""
+        k = jnp.floor(t / self.dt)
+        times = [self.dt * (k + i) for i in (0.0, 1.0, 2.0)]
+        index = jnp.where(times[0] > t, k, jnp.where(times[1] > t, k + 1.0, k + 2.0))
+        kink = jnp.where(
+            times[0] > t, times[0], jnp.where(times[1] > t, times[1], times[2])
+        )
+        return jnp.where(index <= self.length - 1, kink, jnp.inf)
 
     # -- intensity measures -----------------------------------------------------
 

@@ -28,7 +28,7 @@ class Outcome(IntEnum):
         ROCKING: the block uplifts at least once and does not overturn (1).
         OVERTURNED: the block overturns: |theta| reaches pi / 2 rad (2).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> jr.Outcome(2).name, int(jr.Outcome.ROCKING)
         ('OVERTURNED', 1)
@@ -62,7 +62,7 @@ class Status(IntEnum):
             float results (max_rotation, max_base_displacement, uplift_time)
             are NaN (4).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> jr.Status(3).name, int(jr.Status.INVALID_INPUT)
         ('SOLVER_FAILED', 4)
@@ -105,7 +105,7 @@ class EventKind(IntEnum):
         QUIET: the ground is still and the energy left can neither uplift the
             block nor raise max |u|: the analysis ends early.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> jr.EventKind(3).name.lower(), int(jr.EventKind.OVERTURN)
         ('impact', 5)
@@ -176,7 +176,7 @@ class SolverOptions(AbstractChecked):
         ValueError: a concrete tolerance or step out of its range, or a limit
             that is not an integer >= 1 (the message names it).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> opts = jr.SolverOptions(rtol=1e-6, atol=1e-8)
         >>> float(opts.rtol), opts.max_steps, opts.max_segments
@@ -241,7 +241,7 @@ class History(eqx.Module):
             "apex", "impact", ...), one per event.
         alpha: the block's alpha (rad), to plot theta / alpha.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
         ...                 jr.near_fault_pulse("San Fernando PCD/SN"), history=True)
@@ -285,7 +285,7 @@ class Response(eqx.Module):
         segments: the segments of the analysis (one per event).
         history: a `History` with `simulate(..., history=True)`, else None.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> r = jr.simulate(jr.Block(6.0, 1.0), jr.FixedBase(),
         ...                 jr.near_fault_pulse("Northridge JFA/SN"))
@@ -293,29 +293,6 @@ class Response(eqx.Module):
         ('SUCCESS', 'ROCKING')
         >>> round(float(r.max_rotation), 3), round(float(r.uplift_time), 3)
         (0.165, 3.228)
-    """
-
-    t: np.ndarray
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    u: np.ndarray
-    u_dot: np.ndarray
-    z: np.ndarray
-    regime: np.ndarray  # 0 translation, +1 / -1 rocking about x = +b / -b
-    ground_acceleration: np.ndarray
-    event_times: np.ndarray
-    event_kinds: tuple[str, ...]
-    alpha: float  # the block's alpha (rad), to plot theta / alpha
-
-
-class Response(eqx.Module):
-    """Result of `simulate` (and, with leading axes, of a behavior map).
-
-    outcome: `Outcome` code. max_rotation: max |theta| / alpha (pi / (2 alpha)
-    when overturned). max_base_displacement: max |u| (m), 0 on a fixed base.
-    impacts: number of impacts. uplift_time: first uplift (s), NaN if none.
-    status: `Status` code. steps, segments: solver steps and loop segments.
-    history: `History` with `history=True`, else None.
     """
 
     outcome: Int[Array, "..."]
@@ -334,7 +311,7 @@ class Response(eqx.Module):
 
         Of a batch, one value per analysis.
 
-        Example:
+        Examples:
             >>> import jaxrock as jr
             >>> r = jr.simulate(jr.Block(6.0, 1.0), jr.FixedBase(),
             ...                 jr.near_fault_pulse("Northridge JFA/SN"))
@@ -353,7 +330,7 @@ class Response(eqx.Module):
         Returns:
             The line, a str.
 
-        Example:
+        Examples:
             >>> import jaxrock as jr
             >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
             ...                 jr.near_fault_pulse("San Fernando PCD/SN"))

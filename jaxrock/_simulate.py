@@ -220,18 +220,27 @@ def simulate(
 ) -> Response:
     """Simulate one block on a base under a ground motion (SI units, float64).
 
-    Works under `jax.jit`, `jax.vmap` and `jax.jacfwd` (with `history=False`);
-    physical parameters and `duration` are traced, so new values do not
-    recompile.
+    The block rocks about its corners (rotation theta, rad) on a base that
+    moves relative to the ground (displacement u, m) under the ground
+    acceleration x_g''(t) (m/s^2), from rest at t = 0: a hybrid analysis, one
+    Diffrax solve per segment between events (uplift, apex, impact, overturn,
+    ...), with the impact map applied at each impact. Works under `jax.jit`,
+    `jax.vmap` and `jax.jacfwd` (with `history=False`); physical parameters
+    and `duration` are traced, so new values do not recompile. Modules built
+    from traced values are not checked at construction: a parameter out of
+    its range then gives `Status.INVALID_INPUT` and NaN results.
 
     Args:
         block: the rigid block.
-        base: `FixedBase()`, `LinearIsolator(...)` or `FrictionPendulum(...)`.
+        base: `FixedBase()`, `LinearIsolator(...)`, `FrictionPendulum(...)` or
+            `IntegratedFrictionPendulum(...)`.
         motion: an `MPPulse`, a `SinePulse` or a `Record`.
-        duration: length of the analysis (s); default: the end of the
+        duration: length of the analysis (s), > 0; default: the end of the
             excitation plus 5 s.
-        rtol, atol: the integrator's tolerances. Events are located to about
-            1e-12 s on the dense output whatever they are.
+        rtol: the integrator's relative tolerance (-). Events are located to
+            about 1e-12 s on the dense output whatever the tolerances.
+        atol: the integrator's absolute tolerance, in the state's units (rad,
+            rad/s, m, m/s).
         history: also return the time histories (`Response.history`), computed
             by a Python loop of compiled segments.
         history_step: spacing of the history's samples (s); every event is
@@ -239,20 +248,27 @@ def simulate(
         max_steps: the solver's step limit in one segment; default 16384,
             raised for long records to 4 steps a sample (a guard against
             runaway solves that a valid record never reaches).
-        max_segments: the limit on segments (events) of the analysis.
-        rest_tolerance: the rest rule (`SolverOptions`).
+        max_segments: the limit on segments (events) of the analysis; default
+            2000.
+        rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
+            >= 0 (`SolverOptions`).
         solver: a Diffrax solver; default `diffrax.Tsit5()`.
 
     Returns:
         A `Response`. Check `response.status` (or `response.ok`): anything but
         `Status.SUCCESS` means the numbers are not final.
 
-    Example:
+    Raises:
+        ValueError: a `block`, `base` or `motion` of the wrong type or with
+            batch axes, a `duration` or `history_step` that is not > 0, or a
+            concrete option out of its range (the message names it).
+
+    Examples:
         >>> import jaxrock as jr
-        >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(),
+        >>> r = jr.simulate(jr.Block(6.0, 1.0), jr.FixedBase(),
         ...                 jr.near_fault_pulse("Northridge JFA/SN"))
-        >>> r.ok
-        Array(True, dtype=bool)
+        >>> bool(r.ok), jr.Outcome(int(r.outcome)).name
+        (True, 'ROCKING')
     """
     _check_single(block, base, motion)
     if duration is None:

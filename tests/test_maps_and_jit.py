@@ -116,10 +116,12 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
     count, pilot = np.asarray(LAM.size * SIZE.size), np.asarray(False)
     compiles = original._cached._cache_size()
-    *args, count, pilot = jax.device_put(  # committed to a device, as in maps
+    lam, r, bases, motions, initial, duration, count, pilot = jax.device_put(
         (lam, r, bases, motions, initial, duration, count, pilot), jax.devices()[0]
+    )  # committed to a device, as in maps
+    alone, *_ = original(
+        lam, r, bases, motions, None, initial, duration, opts, count, pilot, lanes
     )
-    alone, *_ = original(*args, opts, count, pilot, lanes)
     assert original._cached._cache_size() == compiles  # the map's own loop
     for k in _maps._FIELDS:
         expected = np.asarray(getattr(alone, k))[: int(count)]

@@ -34,12 +34,11 @@ def records():
     return pacoima, sylmar.scaled(5.0)  # a weak record made strong enough to rock
 
 
-@pytest.mark.parametrize(
-    "base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)], ids=["fixed", "linear"]
-)
-def test_a_suite_map_equals_each_records_own_map(records, base):
+def test_a_suite_map_equals_each_records_own_map(records):
     """Records of other lengths and time steps in one compiled map: padding
-    changes no field of any cell."""
+    changes no field of any cell (on an isolated base, whose state moves
+    through the whole record)."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
     suite = jr.Record.stack(records)
     duration = float(np.max(suite.end_time)) + 5.0
     bm = jr.behavior_map(LAM, SIZE, base, suite, progress=False)
