@@ -227,19 +227,7 @@ class DesignResult(eqx.Module):
         overturned: whether each block overturned (bool), same shape.
         best: the parameters with the lowest objective, name -> float.
 
-    Examples:
-        >>> import jax.numpy as jnp, jaxrock as jr
-        >>> from jaxrock.design import tune_isolator
-        >>> result = tune_isolator(
-        ...     lambda p: jr.LinearIsolator(p["period"], p["damping"], 0.5),
-        ...     {"period": 1.5, "damping": 0.2},
-        ...     jr.Block(jnp.array([4.0, 6.0]), 1.0),
-        ...     jr.MPPulse(jnp.array([0.6, 0.8]), 2.0, 2.0, 0.0),
-        ...     bounds={"period": (1.0, 3.0), "damping": (0.05, 0.5)},
-        ...     steps=1,
-        ... )
-        >>> result.params["period"], result.max_rotation.shape
-        (array([1.5, 1.6]), (2, 2, 2))
+    `tune_isolator` returns one (see its example).
     """
 
     params: dict
