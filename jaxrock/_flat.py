@@ -27,7 +27,13 @@ from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import computed_once
-from ._model import event_conditions, redo_limit, segment_setup, transition
+from ._model import (
+    event_conditions,
+    quiet_level,
+    redo_limit,
+    segment_setup,
+    transition,
+)
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -115,7 +121,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     solver = opts.solver
     t0, y0 = c.t, c.y
     t1 = jnp.minimum(t0 + jnp.minimum(c.dt, dtmax), t_stop)
-    kink = motion.next_kink(t0)
+    kink = motion.next_kink(t0, quiet_level(c, block, base))
     if kink is not None:
         t1 = jnp.minimum(t1, kink)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step

@@ -46,13 +46,21 @@ class AbstractGroundMotion(AbstractChecked):
     def end_time(self) -> Float[Array, ""]:
         """When the excitation ends (s)."""
 
-    def next_kink(self, t: Float[Array, ""]) -> Float[Array, ""] | None:
+    def next_kink(
+        self, t: Float[Array, ""], quiet_below=None
+    ) -> Float[Array, ""] | None:
         """The first kink of x_g'' after t (s; inf past the last): no step
         crosses one. None where x_g'' is smooth: a pulse's only kinks are its
         start and end, where segments stop anyway (a later start is left to
-        the error control, cheaper than clipping every step)."""
-        del t
+        the error control, cheaper than clipping every step). `quiet_below`
+        (m/s^2): kinks before |x_g''| can reach it may be skipped."""
+        del t, quiet_below
         return None
+
+    def with_peaks(self) -> "AbstractGroundMotion":
+        """The motion with what `next_kink(t, quiet_below)` reads, computed
+        once before an analysis's loop."""
+        return self
 
     @property
     def sample_count(self) -> int:

@@ -122,6 +122,8 @@ def _map_chunk(
     # records and each cell's index into it, or one record for every cell.
     suite = motion_index is not None
     one_motion = not suite and motion.shared_by_cells
+    if one_motion:
+        motion = motion.with_peaks()
     axes = (0, 0, None if one_motion else 0)
 
     def gather(cell):

@@ -141,8 +141,18 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = diffrax.PIDController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
     if motion.next_kink(c.t) is not None:
-        controller = KinkClip(controller, motion)
+        controller = KinkClip(controller, motion, quiet_level(c, block, base))
     return active, args, conditions, t_stop, dtmax, controller
+
+
+def quiet_level(c: Carry, block, base):
+    """|x_g''| below which nothing happens: a block at rest on a fixed base
+    uplifts only where |x_g''| reaches g tan(alpha); None where the state
+    moves (an isolated base, or rocking)."""
+    if base.n_states > 0:
+        return None
+    resting = c.phase == Phase.TRANSLATION
+    return jnp.where(resting, block.uplift_acceleration, 0.0)
 
 
 class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
@@ -153,6 +163,7 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
 
     controller: diffrax.PIDController
     motion: AbstractGroundMotion
+    quiet_below: jax.Array | None = None
 
     @property
     def rtol(self):
@@ -175,7 +186,7 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
         t1, state = self.controller.init(
             terms, t0, t1, y0, dt0, args, func, error_order
         )
-        return jnp.minimum(t1, self.motion.next_kink(t0)), state
+        return jnp.minimum(t1, self.motion.next_kink(t0, self.quiet_below)), state
 
     def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
         keep, next_t0, next_t1, made_jump, state, result = (
@@ -183,7 +194,8 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
                 t0, t1, y0, y1, args, y_error, error_order, state
             )
         )
-        next_t1 = jnp.minimum(next_t1, self.motion.next_kink(next_t0))
+        kink = self.motion.next_kink(next_t0, self.quiet_below)
+        next_t1 = jnp.minimum(next_t1, kink)
         return keep, next_t0, next_t1, made_jump, state, result
 
 

@@ -54,6 +54,8 @@ class Record(AbstractGroundMotion):
     samples: Float[Array, "*batch n"] = parameter("acceleration")
     dt: Float[Array, "*batch"] = parameter("dt")
     length: Int[Array, "*batch"]
+    # max |x_g''| over sample ranges [k, k + 2^l) (`with_peaks`), or None.
+    peaks: Float[Array, "levels n"] | None
     shared_by_cells: ClassVar[bool] = True
     name: str | tuple | None = eqx.field(static=True)
     azimuth: float | tuple | None = eqx.field(static=True)
@@ -73,6 +75,7 @@ class Record(AbstractGroundMotion):
         if np.ndim(self.samples) > 1:  # a suite: one label per record
             name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
         self.name, self.azimuth, self.rsn = name, azimuth, rsn
+        self.peaks = None
 
     def __check_init__(self):
         shape = np.shape(self.samples)
@@ -201,7 +204,10 @@ class Record(AbstractGroundMotion):
     def unlabeled(self) -> "Record":
         """The record without labels: what compiled code takes (labels are
         static, so two labels would compile twice)."""
-        return Record(self.samples, self.dt, length=self.length)
+        out = Record(self.samples, self.dt, length=self.length)
+        return eqx.tree_at(
+            lambda r: r.peaks, out, self.peaks, is_leaf=lambda x: x is None
+        )
 
     # -- what the engines read ----------------------------------------------------
 
@@ -235,15 +241,46 @@ class Record(AbstractGroundMotion):
     def end_time(self):
         return (self.length - 1) * self.dt
 
-    def next_kink(self, t):
+    def with_peaks(self) -> "Record":
+        """The record with its table of peaks (`peaks`): max |x_g''| over every
+        range of 2^l samples, l = 0, 1, ..., so that `next_kink` finds the
+        first sample above a level in log2(n) steps. Traceable; a single
+        record only (a suite keeps None)."""
+        if self.batch_shape:
+            return self
+        level = jnp.abs(self.samples)
+        table = [level]
+        width = 1
+        while width < level.shape[0]:
+            shifted = jnp.concatenate([level[width:], jnp.zeros(width, level.dtype)])
+            level = jnp.maximum(level, shifted)
+            table.append(level)
+            width *= 2
+        return eqx.tree_at(
+            lambda r: r.peaks, self, jnp.stack(table), is_leaf=lambda x: x is None
+        )
+
+    def next_kink(self, t, quiet_below=None):
         """The first sample time after t (the same floats as dt * k), found
-        from t alone: the cost of a step does not grow with the record."""
+        from t alone: the cost of a step does not grow with the record.
+
+        With `quiet_below` (m/s^2) and the table of `with_peaks`: the sample
+        time before the first sample whose |x_g''| reaches `quiet_below`
+        (linear between samples, |x_g''| stays below it until then), if that
+        is later: a block at rest on a fixed base then skips to just before
+        its next uplift in one step.
+        """
         k = jnp.floor(t / self.dt)
         times = [self.dt * (k + i) for i in (0.0, 1.0, 2.0)]
         index = jnp.where(times[0] > t, k, jnp.where(times[1] > t, k + 1.0, k + 2.0))
         kink = jnp.where(
             times[0] > t, times[0], jnp.where(times[1] > t, times[1], times[2])
         )
+        if quiet_below is not None and self.peaks is not None:
+            first = _first_at_least(self.peaks, index.astype(int), quiet_below)
+            later = jnp.minimum(first - 1, self.length - 1).astype(index.dtype)
+            kink = jnp.where(later > index, self.dt * later, kink)
+            index = jnp.maximum(index, later)
         return jnp.where(index <= self.length - 1, kink, jnp.inf)
 
     # -- intensity measures -----------------------------------------------------
@@ -270,3 +307,16 @@ class Record(AbstractGroundMotion):
     @property
     def pga_in_g(self) -> np.ndarray:
         return self.pga / GRAVITY
+
+
+def _first_at_least(peaks, start, level):
+    """The first sample index k >= start with |x_g''| >= level (n if none),
+    by binary lifting on the table of peaks (peaks[l, k]: the max over
+    [k, k + 2^l))."""
+    n = peaks.shape[1]
+    k = start
+    for width_log in reversed(range(peaks.shape[0])):
+        width = 1 << width_log
+        below = peaks[width_log, jnp.clip(k, 0, n - 1)] < level
+        k = jnp.where(below & (k < n), k + width, k)
+    return jnp.minimum(k, n)

@@ -87,6 +87,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
         return transition(c, sol, block, base, motion, duration, opts)
 
     valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
+    motion = motion.with_peaks()
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
     return response(carry, block, opts)
 
@@ -289,7 +290,7 @@ def simulate(
     if history_step is None:
         history_step = min(float(duration) / 2000.0, 0.01)
     positive("history_step", history_step)
-    c, hist = _history(block, base, motion, duration, opts, history_step)
+    c, hist = _history(block, base, motion.with_peaks(), duration, opts, history_step)
     result = response(c, block, opts)
     return eqx.tree_at(lambda r: r.history, result, hist, is_leaf=lambda x: x is None)
 

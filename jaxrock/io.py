@@ -118,6 +118,12 @@ def read_at2(path: str | os.PathLike) -> Record:
     times 1). A header without a units line is taken to be in g, the PEER
     convention.
 
+    The record is labelled from the header and the file name: `name` is the
+    header's second line (event, date, station, component), `azimuth` the
+    component when it is a number of degrees clockwise from north (e.g. 164;
+    None for UP or DWN), and `rsn` the PEER record sequence number of a file
+    named `RSN<n>_...` (else None).
+
     Raises `ValueError`, naming the file and, for a problem on a line, its
     1-based line number, when: the path is a folder or does not exist; the
     file is a velocity or displacement series (a `.VT2` or `.DT2` suffix, or
@@ -140,6 +146,8 @@ def read_at2(path: str | os.PathLike) -> Record:
     ((4172,), 0.01)
     >>> round(float(record.peak_acceleration) / 9.81, 2)  # peak in g
     1.22
+    >>> record.azimuth, record.rsn
+    (164.0, 77)
     """
     name, text = _read_text(path)
     if os.path.splitext(name)[1].upper() in (".VT2", ".DT2"):
@@ -225,4 +233,22 @@ def read_at2(path: str | os.PathLike) -> Record:
             f"holds {values.size} values "
             f"(too {'few' if values.size < npts else 'many'})"
         )
-    return Record(values * factor, dt)
+    return Record(values * factor, dt, **at2_labels(lines[:i], name))
+
+
+def at2_labels(header: list[str], name: str) -> dict:
+    """A PEER file's labels: `name` its header's second line (event, date,
+    station, component), `azimuth` the component when it is a number of
+    degrees (None for UP, DWN or a name), `rsn` the number of a file name
+    RSN<n>_..."""
+    title = header[1].strip() if len(header) > 1 else ""
+    component = title.rsplit(",", 1)[-1].strip() if "," in title else ""
+    azimuth = None
+    if re.fullmatch(r"\d+(?:\.\d+)?", component) and float(component) <= 360.0:
+        azimuth = float(component)
+    rsn = re.match(r"RSN(\d+)_", os.path.basename(name), re.I)
+    return dict(
+        name=title or os.path.basename(name),
+        azimuth=azimuth,
+        rsn=int(rsn.group(1)) if rsn else None,
+    )

