@@ -48,7 +48,7 @@ def _geometry(block, theta, s):
 
 
 def vector_field(t, y, args: Args):
-    """Lagrange's equations of Sec. 2 of the paper (see PHYSICS.md), per unit m.
+    """Lagrange's equations of Sec. 2 of the paper (docs/model.md), per unit m.
 
     Rocking:  u'' + mu c1 theta'' + mu s1 theta'^2 + f = -x_g''
               c1 u'' + (4/3) r^2 theta'' + g s1     = -c1 x_g''

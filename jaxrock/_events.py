@@ -157,7 +157,7 @@ class BracketedNewton(optx.AbstractRootFinder):
     change). The function may return a PyTree of scalars of which all but one are
     zero (as Diffrax passes the conditions); they are summed. Terminates when the
     Newton step is below atol + rtol |t|. Plain `optimistix.Newton` can leave
-    the bracket and stall near double roots (DIFFRAX_NOTES.md).
+    the bracket and stall near double roots.
     """
 
     rtol: float

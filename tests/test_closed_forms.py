@@ -1,4 +1,4 @@
-"""Closed forms and invariants (PHYSICS.md)."""
+"""Closed forms and invariants of the model (docs/model.md)."""
 
 import math
 
