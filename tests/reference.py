@@ -1,10 +1,11 @@
 """An independent SciPy reference for one analysis (NumPy only, no jaxrock code).
 
-Written from the equations of docs/model.md with explicit masses (m = 1, m_b = m / mbar) and
-`numpy.linalg.solve` on the 2x2 mass matrix, so that an algebra slip in
-jaxrock's reduced (per unit mass) equations would show. `solve_ivp` with DOP853
-at rtol 1e-10 / atol 1e-12, terminal events and a restart loop; peaks of |u| as
-non-terminal events at u' = 0.
+Written from the equations of docs/model.md with explicit masses (m = 1,
+m_b = m / mbar) and `numpy.linalg.solve` on the 2x2 mass matrix, so that an
+algebra slip in jaxrock's reduced (per unit mass) equations would show.
+`solve_ivp` with DOP853 at rtol 1e-10 / atol 1e-12, terminal events and a
+restart loop (also at every kink of a record's x_g'', `breaks`); peaks of |u|
+as non-terminal events at u' = 0.
 """
 
 import math
