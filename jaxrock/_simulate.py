@@ -165,7 +165,7 @@ def _history(block, base, motion, duration, opts, step):
     before and just after the transition are recorded (same time).
     """
     duration = float(duration)
-    grid = np.linspace(0.0, duration, int(round(duration / step)) + 1)
+    grid = np.linspace(0.0, duration, int(np.ceil(duration / step - 1e-9)) + 1)
     c = initial_carry(block, base, motion)
 
     def regime(carry):

@@ -225,3 +225,16 @@ def test_fragility_names_a_zero_amplitude_motion():
 
 
 # -- BehaviorMap.load ------------------------------------------------------------
+
+
+def test_history_is_sampled_by_time_not_by_count():
+    """A long analysis keeps its time resolution: samples every `history_step`
+    (default: duration / 2000, at most 0.01 s), besides every event."""
+    block, base = jr.Block(4.0, 1.0), jr.FixedBase()
+    long = jr.simulate(block, base, PULSE, history=True, duration=400.0)
+    regular = np.diff(long.history.t)
+    assert regular.max() <= 0.01 + 1e-12
+    assert long.history.t.size >= long.history.t[-1] / 0.01  # every 0.01 s
+    fine = jr.simulate(block, base, PULSE, history=True, history_step=0.002)
+    assert np.diff(fine.history.t).max() <= 0.002 + 1e-12
+    assert float(fine.max_rotation) == float(long.max_rotation)
