@@ -168,6 +168,22 @@ def simulate(
     for _ in range(10**6):
         if t >= t_end:
             break
+        if fixed and phase == "T" and breaks.size:
+            # At rest on a fixed base nothing moves until |x_g''| reaches thr;
+            # x_g'' is linear between kinks: the crossing, from the samples.
+            k = np.searchsorted(breaks, t, side="right")
+            while k < breaks.size and abs(acc(breaks[k])) < thr:
+                k += 1
+            if k == breaks.size or breaks[k] > t_end:
+                t = t_end
+                break
+            lo, a_lo = max(breaks[k - 1], t), acc(max(breaks[k - 1], t))
+            a_hi = acc(breaks[k])
+            level = thr if a_hi > 0 else -thr
+            t = lo + (breaks[k] - lo) * (level - a_lo) / (a_hi - a_lo)
+            phase, s, rocked = "R", 1 if level < 0 else -1, True
+            uplift_time = t if math.isnan(uplift_time) else uplift_time
+            continue
         if phase == "T":
             ev1 = lambda t, x, s: abs_base_acc(t, x) + thr  # noqa: E731
             ev2 = lambda t, x, s: thr - abs_base_acc(t, x)  # noqa: E731
