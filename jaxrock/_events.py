@@ -4,7 +4,7 @@ Every condition is positive inside its phase and is armed with
 `direction=False` (it fires when it goes from > 0 to <= 0 between two step
 ends), so a segment that starts exactly on a zero does not fire again at once.
 
-| phase       | "a" fires at                      | "b" fires at                     |
+| phase       | "angle" fires at                  | "rate" fires at                  |
 |-------------|-----------------------------------|----------------------------------|
 | TRANSLATION | u'' + x_g'' = -g tan(alpha): s=+1 | u'' + x_g'' = +g tan(alpha): s=-1 |
 | RISING      | s theta = pi / 2: overturn        | theta' = 0: apex                  |
@@ -42,7 +42,7 @@ def _by_phase(phase, translation, rising, falling):
     )
 
 
-def condition_a(t, y, args: Args, **kwargs):
+def condition_angle(t, y, args: Args, **kwargs):
     del kwargs
     theta, _, base_state = y
     a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
@@ -55,7 +55,7 @@ def condition_a(t, y, args: Args, **kwargs):
     )
 
 
-def condition_b(t, y, args: Args, **kwargs):
+def condition_rate(t, y, args: Args, **kwargs):
     del kwargs
     _, theta_dot, base_state = y
     a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)

@@ -30,11 +30,11 @@ from ._dynamics import (
     rests_at_impact,
 )
 from ._events import (
-    condition_a,
-    condition_b,
+    condition_angle,
     condition_base,
     condition_guard,
     condition_quiet,
+    condition_rate,
     quiet,
 )
 from ._ground import AbstractGroundMotion
@@ -44,6 +44,13 @@ from ._results import EventKind, Outcome, Response, Status
 
 
 class Carry(eqx.Module):
+    """The state of one analysis between segments (SI units): the time and
+    state y = (theta, theta', base state), the phase and rocking sign, the
+    running maxima of |theta| and |u|, counts, the first uplift, how it ended
+    so far (`status`, `done`, the last event's `kind`), the next step `dt`,
+    s theta where the phase began (`theta_ref`, for the guard) and the end of
+    a redo (`t_limit`, inf: none)."""
+
     t: Float[Array, ""]
     y: tuple
     phase: Int[Array, ""]
@@ -239,9 +246,11 @@ class Conditions(NamedTuple):
 def event_conditions(base) -> Conditions:
     """The conditions of a segment on `base` (a fixed base has no base state)."""
     if base.n_states == 0:
-        return Conditions(condition_a, condition_b, condition_guard)
+        return Conditions(condition_angle, condition_rate, condition_guard)
     peak = base.peak_condition() or condition_base
-    return Conditions(condition_a, condition_b, condition_guard, peak, condition_quiet)
+    return Conditions(
+        condition_angle, condition_rate, condition_guard, peak, condition_quiet
+    )
 
 
 class _SegmentEnd(NamedTuple):
