@@ -160,10 +160,25 @@ def isolator_objective(
         {'damping': 0.323, 'period': -0.173}
     """
 
+    _check_objective(motions, capacity, penalty)
+
     def objective(params):
         return _objective(make_base(params), blocks, motions, capacity, penalty, opts)
 
     return objective
+
+
+def _check_objective(motions, capacity, penalty) -> None:
+    """The objective's arguments (`ValueError` naming them)."""
+    if not _real("capacity", capacity) > 0:
+        raise ValueError(f"`capacity` must be finite and > 0 (m), got {capacity}")
+    if not _real("penalty", penalty) >= 0:
+        raise ValueError(f"`penalty` must be finite and >= 0, got {penalty}")
+    if motions.shared_by_cells and motions.batch_shape:
+        raise ValueError(
+            "`motions` must be one record or a batch of pulses: a suite of "
+            "records is not supported by the design tools"
+        )
 
 
 def _real(name: str, value) -> float:
@@ -176,7 +191,7 @@ def _real(name: str, value) -> float:
     return float(value)
 
 
-def _check_design(init, bounds, capacity, penalty, steps, learning_rate) -> list:
+def _check_design(init, bounds, steps, learning_rate) -> list:
     """`tune_isolator`'s arguments, checked before anything compiles; returns
     the design variables' names."""
     if not isinstance(init, dict) or not init:
@@ -195,10 +210,6 @@ def _check_design(init, bounds, capacity, penalty, steps, learning_rate) -> list
             raise ValueError(f"bounds[{k!r}] must have low < high, got {bounds[k]}")
         if not lo <= _real(f"init[{k!r}]", init[k]) <= hi:
             raise ValueError(f"init[{k!r}] = {init[k]} is outside bounds {bounds[k]}")
-    if not _real("capacity", capacity) > 0:
-        raise ValueError(f"`capacity` must be finite and > 0 (m), got {capacity}")
-    if not _real("penalty", penalty) >= 0:
-        raise ValueError(f"`penalty` must be finite and >= 0, got {penalty}")
     if not _real("learning_rate", learning_rate) > 0:
         raise ValueError(f"`learning_rate` must be finite and > 0, got {learning_rate}")
     if not is_count(steps) or steps < 0:
@@ -333,7 +344,8 @@ def tune_isolator(
         >>> {k: round(v, 3) for k, v in result.best.items()}
         {'damping': 0.145, 'period': 1.743}
     """
-    names = _check_design(init, bounds, capacity, penalty, steps, learning_rate)
+    _check_objective(motions, capacity, penalty)
+    names = _check_design(init, bounds, steps, learning_rate)
     lo = {k: float(bounds[k][0]) for k in names}
     width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
     opts = SolverOptions(rtol=rtol, atol=atol)

@@ -349,5 +349,6 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
         raise ValueError(
             f"unknown pulse {name!r}; choose one of: {', '.join(NEAR_FAULT_PULSES)}"
         )
+    scale = float(scale_factors(scale, "scale"))
     amplitude_cm, gamma, phase, frequency = _TABLE_3_1[name]
     return MPPulse(scale * amplitude_cm / 100.0, frequency, gamma, phase)

@@ -95,11 +95,12 @@ def broadcast_batch_shape(module) -> tuple[int, ...]:
         ) from None
 
 
-def scale_factors(factor) -> np.ndarray:
-    """Scale factors as an array, each finite and > 0 (`ValueError` else)."""
+def scale_factors(factor, name: str = "factor") -> np.ndarray:
+    """Scale factors as an array, each finite and > 0 (`ValueError` naming
+    `name` else)."""
     factor = np.asarray(factor, dtype=float)
     if factor.size == 0 or not np.all(np.isfinite(factor) & (factor > 0)):
-        raise ValueError(f"`factor` must be finite and > 0, got {factor.tolist()}")
+        raise ValueError(f"`{name}` must be finite and > 0, got {factor.tolist()}")
     return factor
 
 

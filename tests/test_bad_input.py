@@ -124,6 +124,16 @@ def test_traced_valid_parameters_are_unaffected(traced):
         (lambda: jr.MPPulse(1.0, 0.5, 2.0, 0.0, t0=-10.0), "`t0` must be > -gamma"),
         (lambda: jr.SolverOptions(max_steps=2.5), "`max_steps` must be an integer"),
         (lambda: jr.fit_lognormal([1.0, 2.0], [True]), "`im` and `failed`"),
+        (lambda: jr.near_fault_pulse("Tabas TAB/SP", scale=-1.0), "`scale` must be"),
+        (
+            lambda: jr.design.isolator_objective(
+                lambda p: jr.LinearIsolator(p["period"], 0.35, 0.5),
+                jr.Block(4.0, 1.0),
+                PULSE,
+                capacity=0.0,
+            ),
+            "`capacity` must be finite and > 0",
+        ),
     ],
 )
 def test_bad_values_name_the_parameter(make, message):
