@@ -1,7 +1,10 @@
 """jaxrock: rigid blocks rocking on seismically isolated bases, in JAX.
 
 Importing jaxrock enables JAX's float64 mode (`jax_enable_x64`): every result
-is float64 unless you turn it off again.
+is float64 unless you turn it off again. It also turns on JAX's persistent
+compilation cache in `~/.cache/jaxrock/xla` (a second run reuses the compiled
+programs of the first), unless JAX's cache is configured already;
+`JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off` turns it off.
 """
 
 import importlib.metadata
@@ -10,10 +13,16 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from ._cache import enable_compilation_cache  # noqa: E402
+
+enable_compilation_cache()
+
 from . import design as design  # noqa: E402
 from . import io as io  # noqa: E402
 from . import records as records  # noqa: E402
 from ._block import Block as Block  # noqa: E402
+from ._fit import PulseFit as PulseFit  # noqa: E402
+from ._fit import fit_pulse as fit_pulse
 from ._fragility import Fragility as Fragility  # noqa: E402
 from ._fragility import fit_lognormal as fit_lognormal
 from ._fragility import fragility as fragility
