@@ -7,7 +7,6 @@ import time
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -29,7 +28,6 @@ from ._results import (
     Outcome,
     SolverOptions,
     Status,
-    max_steps_for,
 )
 from ._store import ChunkStore
 
@@ -732,13 +730,8 @@ def behavior_map(
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
     chunk_size = _chunk_size(chunk_size)
-    opts = SolverOptions(
-        rtol,
-        atol,
-        max_steps_for(motion, max_steps),
-        max_segments,
-        rest_tolerance,
-        solver or diffrax.Tsit5(),
+    opts = SolverOptions.for_motion(
+        motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))

@@ -131,7 +131,7 @@ MAX_STEPS, MAX_SEGMENTS = 16384, 2000
 REST_TOLERANCE = 1e-6
 
 
-def max_steps_for(motion, max_steps: int | None) -> int:
+def _max_steps_for(motion, max_steps: int | None) -> int:
     """The step limit of a segment: `max_steps`, or by default `MAX_STEPS`
     raised for a long record to a power of two above 4 steps a sample (every
     sample is a step boundary: a segment in translation through a whole
@@ -214,6 +214,21 @@ class SolverOptions(AbstractChecked):
         if self.step is not None:
             out.append(greater_than_zero("step", self.step))
         return out
+
+    @classmethod
+    def for_motion(
+        cls, motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
+    ) -> "SolverOptions":
+        """The options of an analysis under `motion`: `max_steps` None picks
+        the step limit for its length (`_max_steps_for`), `solver` None Tsit5."""
+        return cls(
+            rtol,
+            atol,
+            _max_steps_for(motion, max_steps),
+            max_segments,
+            rest_tolerance,
+            solver or diffrax.Tsit5(),
+        )
 
 
 class History(eqx.Module):

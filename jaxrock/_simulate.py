@@ -37,7 +37,6 @@ from ._results import (
     History,
     Response,
     SolverOptions,
-    max_steps_for,
 )
 
 
@@ -276,13 +275,8 @@ def simulate(
         duration = motion.end_time + 5.0
     positive("duration", duration)
     duration = as_float(duration)
-    opts = SolverOptions(
-        rtol,
-        atol,
-        max_steps_for(motion, max_steps),
-        max_segments,
-        rest_tolerance,
-        solver or diffrax.Tsit5(),
+    opts = SolverOptions.for_motion(
+        motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
     motion = motion.unlabeled()  # labels are static: they would recompile
     if not history:

