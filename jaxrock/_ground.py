@@ -46,6 +46,13 @@ class AbstractGroundMotion(AbstractChecked):
     def end_time(self) -> Float[Array, ""]:
         """When the excitation ends (s)."""
 
+    @abc.abstractmethod
+    def acceleration_bound(
+        self, t0: Float[Array, ""], t1: Float[Array, ""]
+    ) -> Float[Array, ""]:
+        """A bound of |x_g''| over [t0, t1] (m/s^2; t1 >= t0), tight when the
+        interval is short, inf when none is cheap (the rest rule reads it)."""
+
     def next_kink(
         self, t: Float[Array, ""], quiet_below=None
     ) -> Float[Array, ""] | None:
@@ -195,6 +202,13 @@ class MPPulse(AbstractGroundMotion):
         )
         return jnp.where(jnp.abs(t - self.t0) <= self.half_duration, a, 0.0)
 
+    def acceleration_bound(self, t0, t1):
+        # The jerk is at most |A| pi f_p / gamma * 2 pi f_p (1/gamma + 2 + 2 gamma).
+        w = 2.0 * jnp.pi * self.frequency
+        jerk = jnp.abs(self.amplitude) * 0.5 * w * w / self.gamma
+        jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
+        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
+
     def scaled(self, factor) -> "MPPulse":
         factor = scale_factors(factor)
         shape = factor.shape + self.batch_shape
@@ -267,6 +281,10 @@ class SinePulse(AbstractGroundMotion):
     def acceleration(self, t):
         a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
         return jnp.where((t >= 0) & (t <= self.end_time), a, 0.0)
+
+    def acceleration_bound(self, t0, t1):
+        jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
+        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
     def scaled(self, factor) -> "SinePulse":
         factor = scale_factors(factor)
