@@ -79,6 +79,15 @@ class Coordinates(NamedTuple):
             "record" the records' names. A name of both the base and the
             motion (the `gamma` of a friction pendulum and of a pulse) is
             prefixed "base_" and "motion_".
+
+    Examples:
+        >>> import numpy as np, jaxrock as jr
+        >>> bases = jr.LinearIsolator(np.array([1.5, 2.0]), 0.35, 0.5)
+        >>> bm = jr.behavior_map([3.0], [1.0], bases,
+        ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+        >>> dims, period, attrs = bm.coordinates.coords["period"]
+        >>> bm.coordinates.dims, dims, period, attrs
+        (('base',), ('base',), array([1.5, 2. ]), {'units': 's'})
     """
 
     dims: tuple[str, ...]

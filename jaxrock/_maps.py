@@ -442,6 +442,13 @@ class BehaviorMap(eqx.Module):
             ValueError: a Dataset without the map's variables or attributes
                 (base, motion, seconds), or whose arrays disagree (see
                 `load`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> jr.BehaviorMap.from_xarray(bm.to_xarray()).counts() == bm.counts()
+            True
         """
         names = ("slenderness", "size") + _FIELDS
         missing = [k for k in names if k not in ds.variables]
