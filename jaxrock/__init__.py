@@ -59,6 +59,7 @@ from ._isolators import (
 from ._isolators import (
     LinearIsolator as LinearIsolator,
 )
+from ._labeled import Coordinates as Coordinates  # noqa: E402
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
 from ._record import (

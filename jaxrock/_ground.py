@@ -138,11 +138,11 @@ class MPPulse(AbstractGroundMotion):
         (2.0, 0.5)
     """
 
-    amplitude: Float[Array, "..."] = parameter("amplitude")
-    frequency: Float[Array, "..."] = parameter("frequency")
-    gamma: Float[Array, "..."] = parameter("gamma")
-    phase: Float[Array, "..."] = parameter("phase")
-    t0: Float[Array, "..."] = parameter("t0")
+    amplitude: Float[Array, "..."] = parameter("amplitude", "m/s")
+    frequency: Float[Array, "..."] = parameter("frequency", "Hz")
+    gamma: Float[Array, "..."] = parameter("gamma", "1")
+    phase: Float[Array, "..."] = parameter("phase", "degree")
+    t0: Float[Array, "..."] = parameter("t0", "s")
 
     def __init__(self, amplitude, frequency, gamma, phase, t0=None):
         self.amplitude = amplitude
@@ -269,8 +269,8 @@ class SinePulse(AbstractGroundMotion):
         (0.5, 3.0)
     """
 
-    amplitude: Float[Array, "..."] = parameter("amplitude")
-    frequency: Float[Array, "..."] = parameter("frequency")
+    amplitude: Float[Array, "..."] = parameter("amplitude", "m/s^2")
+    frequency: Float[Array, "..."] = parameter("frequency", "Hz")
 
     def constraints(self):
         return [

@@ -51,8 +51,8 @@ class Record(AbstractGroundMotion):
         (Array(9.99, dtype=float64), Array(6., dtype=float64))
     """
 
-    samples: Float[Array, "*batch n"] = parameter("acceleration")
-    dt: Float[Array, "*batch"] = parameter("dt")
+    samples: Float[Array, "*batch n"] = parameter("acceleration", "m/s^2")
+    dt: Float[Array, "*batch"] = parameter("dt", "s")
     length: Int[Array, "*batch"]
     # max |x_g''| over sample ranges [k, k + 2^l) (`with_peaks`), or None.
     peaks: Float[Array, "levels n"] | None
