@@ -23,6 +23,7 @@ from . import records as records  # noqa: E402
 from ._block import Block as Block  # noqa: E402
 from ._fit import PulseFit as PulseFit  # noqa: E402
 from ._fit import fit_pulse as fit_pulse
+from ._fit import score_pulse as score_pulse
 from ._fragility import Fragility as Fragility  # noqa: E402
 from ._fragility import fit_lognormal as fit_lognormal
 from ._fragility import fragility as fragility
