@@ -176,8 +176,8 @@ def simulate(
             return True
         window = 2 * e * abs(thd) / (decel * (1 - e))
         times = np.linspace(t, t + window, 65)
-        if breaks is not None:
-            times = np.concatenate([times, breaks[(breaks > t) & (breaks < t + window)]])
+        inside = breaks[(breaks > t) & (breaks < t + window)]
+        times = np.concatenate([times, inside])
         return max(abs(acc(tt)) for tt in times) < level
 
     s0 = uplift_now(t, x)
