@@ -20,6 +20,7 @@ from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
+from ._labeled import ATTRS, Coordinates, coordinates, dataset, read, suffix, write
 from ._misc import as_float, broadcast_batch_shape, grid_axis, is_count, positive
 from ._model import Carry, check_base_and_motion, initial_carry, response
 from ._results import (
@@ -274,6 +275,9 @@ class BehaviorMap(eqx.Module):
             slowest one).
         motion_names: the records' names of a map under a suite of records
             (its leading motion axis); None otherwise.
+        coordinates: the names of the leading axes and the parameters of the
+            base and the motion along them (`Coordinates`); None for a map
+            read from a file that does not hold them.
 
     Examples:
         >>> import jaxrock as jr
@@ -303,15 +307,22 @@ class BehaviorMap(eqx.Module):
     lane_efficiency: float = float("nan")
     # The records' names of a map under a suite (its leading motion axis).
     motion_names: tuple | None = None
+    coordinates: Coordinates | None = None
 
     def select(self, index: int) -> "BehaviorMap":
         """The map at `index` of its leading axis (a suite's record, an
-        ensemble's isolator or pulse), labelled with the record's name."""
+        ensemble's isolator or pulse), labelled with the record's name; its
+        `coordinates` hold that member's parameters, and a map under a suite
+        keeps the records' names unless the axis is the suite's."""
         if self.outcome.ndim < 3:
             raise ValueError("the map has no leading batch axis to select from")
         fields = {k: getattr(self, k)[index] for k in _FIELDS}
-        names = self.motion_names
-        one = names is not None and len(names) == self.outcome.shape[0]
+        names, c = self.motion_names, self._coordinates()
+        if self.coordinates is None:  # (read from a file without them) a guess
+            on_records = names is not None and len(names) == self.outcome.shape[0]
+        else:
+            on_records = c.dims[0].startswith("record")
+        one = on_records and names is not None and len(names) == self.outcome.shape[0]
         return BehaviorMap(
             slenderness=self.slenderness,
             size=self.size,
@@ -320,7 +331,12 @@ class BehaviorMap(eqx.Module):
             motion=names[index] if one else f"{self.motion} [{index}]",
             seconds=self.seconds,
             lane_efficiency=self.lane_efficiency,
+            motion_names=None if on_records else names,
+            coordinates=c.select(index),
         )
+
+    def _coordinates(self) -> Coordinates:
+        return self.coordinates or Coordinates.unlabeled(self.outcome.ndim - 2)
 
     def counts(self) -> dict[str, int]:
         """The number of cells per outcome, and of cells that did not converge.
@@ -367,15 +383,114 @@ class BehaviorMap(eqx.Module):
             text += f", {c['not_converged']} NOT CONVERGED (see status)"
         return text + f" [{self.motion}; {self.base}]"
 
-    def save(self, path) -> None:
-        """Write the map to a compressed NumPy `.npz` file.
+    def to_xarray(self):
+        """The map as an `xarray.Dataset` with named dimensions.
 
-        The file holds every array and the metadata (base, motion, seconds,
-        lane_efficiency, motion_names); `BehaviorMap.load` reads it back.
+        Dimensions: the leading (batch) axes of `coordinates` ("base", then
+        "motion" for a batch of pulses or "record" for a suite of records),
+        then "slenderness" and "size". Coordinates: the grid (slenderness
+        lambda = h / b, -; size r, m) and the parameters of the base and the
+        motion along the batch axes, with their SI units in `attrs` (e.g.
+        `period` (s) of a batch of `LinearIsolator`, `amplitude` (m/s) of a
+        batch of pulses, `record` the records' names), 0-d where one value. A
+        1-D coordinate of distinct values is an index: `ds.sel(period=2.0)`.
+        Data variables: the per-cell fields, their meanings and units in
+        `attrs` (`outcome` and `status` list their codes as `flag_values`
+        and `flag_meanings`). Attributes: `base` and `motion` (descriptions),
+        `seconds` (s), `lane_efficiency` and, under a suite, `motion_names`.
+
+        Needs xarray (`pip install "jaxrock[xarray]"`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> ds = bm.to_xarray()
+            >>> ds.outcome.dims, int(ds.outcome.sel(slenderness=6.0, size=0.5))
+            (('slenderness', 'size'), 2)
+            >>> float(ds.frequency), ds.frequency.attrs["units"]  # the pulse's f_p
+            (0.33, 'Hz')
+        """
+        c = self._coordinates()
+        dims = c.dims + ("slenderness", "size")
+        coords = {
+            k: ((k,), getattr(self, k), ATTRS[k]) for k in ("slenderness", "size")
+        }
+        return dataset(
+            {k: (dims, getattr(self, k)) for k in _FIELDS},
+            coords | c.coords,
+            self._attributes(),
+        )
+
+    def _attributes(self) -> dict:
+        """The metadata: base, motion, seconds, lane_efficiency, motion_names
+        (when a suite's, None as "")."""
+        out = dict(
+            base=self.base,
+            motion=self.motion,
+            seconds=float(self.seconds),
+            lane_efficiency=float(self.lane_efficiency),
+        )
+        if self.motion_names is not None:
+            out["motion_names"] = ["" if n is None else n for n in self.motion_names]
+        return out
+
+    @classmethod
+    def from_xarray(cls, ds) -> "BehaviorMap":
+        """The map of a Dataset of `BehaviorMap.to_xarray` (or read from its
+        file).
+
+        Raises:
+            ValueError: a Dataset without the map's variables or attributes
+                (base, motion, seconds), or whose arrays disagree (see
+                `load`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> jr.BehaviorMap.from_xarray(bm.to_xarray()).counts() == bm.counts()
+            True
+        """
+        names = ("slenderness", "size") + _FIELDS
+        missing = [k for k in names if k not in ds.variables]
+        missing += [k for k in ("base", "motion", "seconds") if k not in ds.attrs]
+        if missing:
+            raise ValueError(f"missing {', '.join(missing)}")
+        arrays = {k: ds[k].values for k in names}
+        _check_map_arrays(arrays)
+        dims = ds["outcome"].dims[:-2]
+        suite = ds.attrs.get("motion_names")
+        return cls(
+            **arrays,
+            base=str(ds.attrs["base"]),
+            motion=str(ds.attrs["motion"]),
+            seconds=float(ds.attrs["seconds"]),
+            lane_efficiency=float(ds.attrs.get("lane_efficiency", np.nan)),
+            motion_names=None
+            if suite is None
+            else tuple(str(n) or None for n in np.atleast_1d(suite)),
+            coordinates=Coordinates.from_dataset(ds, dims, ("slenderness", "size")),
+        )
+
+    def save(self, path) -> None:
+        """Write the map to a file, in the format its suffix names.
+
+        `.npz`: a compressed NumPy file (every array, and the metadata as
+        JSON); `.nc`: NetCDF-4 (by h5netcdf); `.zarr`: a Zarr store (a
+        folder, replaced if it exists). NetCDF and Zarr hold the Dataset of
+        `to_xarray` and need `pip install "jaxrock[xarray]"`. Every format
+        holds the arrays, the batch axes' coordinates and the metadata (base,
+        motion, seconds, lane_efficiency, motion_names); `BehaviorMap.load`
+        reads them back.
 
         Args:
-            path: the file's path (str or path-like); NumPy appends `.npz` to
-                a name without it.
+            path: the file's path (str or path-like), ending in `.npz`, `.nc`
+                or `.zarr`; NumPy appends `.npz` to a name without a suffix.
+
+        Raises:
+            ValueError: any other suffix, or a `.zarr` path that exists and is
+                not a Zarr store.
 
         Examples:
             >>> import os, tempfile, jaxrock as jr
@@ -386,33 +501,35 @@ class BehaviorMap(eqx.Module):
             >>> jr.BehaviorMap.load(path).counts() == bm.counts()
             True
         """
-        meta = json.dumps(
-            {
-                "base": self.base,
-                "motion": self.motion,
-                "seconds": self.seconds,
-                "lane_efficiency": self.lane_efficiency,
-                "motion_names": self.motion_names,
-            }
-        )
+        kind = suffix(path)
+        if kind != ".npz":
+            write(self.to_xarray(), path, kind)
+            return
+        meta = self._attributes() | {
+            "motion_names": self.motion_names,
+            "coordinates": None
+            if self.coordinates is None
+            else self.coordinates.to_json(),
+        }
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
-        np.savez_compressed(path, metadata=np.array(meta), **arrays)
+        np.savez_compressed(path, metadata=np.array(json.dumps(meta)), **arrays)
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
-        """Read a map written by `BehaviorMap.save`.
+        """Read a map written by `BehaviorMap.save` (`.npz`, `.nc` or `.zarr`).
 
         Args:
-            path: the `.npz` file's path (str or path-like).
+            path: the file's path (str or path-like).
 
         Returns:
-            The `BehaviorMap`, with the arrays and metadata saved.
+            The `BehaviorMap`, with the arrays, coordinates and metadata saved.
 
         Raises:
-            ValueError: the file is not such a map (the message names it):
-                missing, unreadable or truncated, without some arrays or
-                metadata, with arrays whose shapes disagree, or with outcome or
-                status codes out of range.
+            ValueError: a suffix other than `.npz`, `.nc` and `.zarr`, or a
+                file that is not such a map (the message names it): missing,
+                unreadable or truncated, without some arrays or metadata, with
+                arrays whose shapes disagree, or with outcome or status codes
+                out of range.
 
         Examples:
             >>> import os, tempfile, jaxrock as jr
@@ -423,34 +540,42 @@ class BehaviorMap(eqx.Module):
             >>> bm.outcome.shape, bm.base
             ((2, 2), 'fixed base')
         """
-        names = ("slenderness", "size") + _FIELDS
+        kind = suffix(path)
         try:
-            with np.load(path, allow_pickle=False) as data:
-                missing = [k for k in ("metadata",) + names if k not in data.files]
-                if missing:
-                    raise ValueError(f"missing {', '.join(missing)}")
-                data_meta = data["metadata"]
-                meta = json.loads(str(data_meta))
-                arrays = {k: data[k] for k in names}
-            if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(
-                meta
-            ):
-                raise ValueError("its metadata lacks base, motion or seconds")
-            meta = {
-                k: meta[k]
-                for k in ("base", "motion", "seconds", "lane_efficiency")
-                if k in meta
-            }
-            names = json.loads(str(data_meta)).get("motion_names")
-            if isinstance(names, list):
-                meta["motion_names"] = tuple(names)
-            _check_map_arrays(arrays)
+            if kind != ".npz":
+                return cls.from_xarray(read(path, kind))
+            return cls._load_npz(path)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
             raise ValueError(
                 f"{str(path)!r} is not a behavior map written by "
                 f"BehaviorMap.save: {err}"
             ) from None
-        return cls(**arrays, **meta)
+
+    @classmethod
+    def _load_npz(cls, path) -> "BehaviorMap":
+        names = ("slenderness", "size") + _FIELDS
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in ("metadata",) + names if k not in data.files]
+            if missing:
+                raise ValueError(f"missing {', '.join(missing)}")
+            meta = json.loads(str(data["metadata"]))
+            arrays = {k: data[k] for k in names}
+        if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(meta):
+            raise ValueError("its metadata lacks base, motion or seconds")
+        _check_map_arrays(arrays)
+        out = {
+            k: meta[k]
+            for k in ("base", "motion", "seconds", "lane_efficiency")
+            if k in meta
+        }
+        if isinstance(meta.get("motion_names"), list):
+            out["motion_names"] = tuple(meta["motion_names"])
+        if isinstance(meta.get("coordinates"), dict):
+            c = Coordinates.from_json(meta["coordinates"])
+            if len(c.dims) != arrays["outcome"].ndim - 2:
+                raise ValueError(f"coordinates name {len(c.dims)} leading axes")
+            out["coordinates"] = c
+        return cls(**arrays, **out)
 
 
 def _check_map_arrays(arrays: dict) -> None:
@@ -912,4 +1037,5 @@ def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
         motion_names=grid.motion_names,
+        coordinates=coordinates(grid.base, grid.motion),
     )

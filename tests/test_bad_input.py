@@ -188,6 +188,21 @@ def test_bad_values_name_the_parameter(make, message):
             ),
             "`frequency_ratio`",
         ),
+        (
+            lambda: jr.overturning_spectrum(
+                jr.Block(3.0, 1.0),
+                jr.LinearIsolator([1.5, 2.0], 0.35, 0.5),
+                [1.0],
+                [2.0],
+            ),
+            "`base` must be one base",
+        ),
+        (
+            lambda: jr.fragility(
+                3.0, 1.0, jr.LinearIsolator([1.5, 2.0], 0.35, 0.5), PULSE, scales=[1.0]
+            ),
+            "`base` must be one base",
+        ),
     ],
 )
 def test_api_errors_are_value_errors_naming_the_parameter(call, message):

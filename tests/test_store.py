@@ -100,6 +100,24 @@ def test_load_reads_a_consistent_map(tmp_path):
     assert bm.outcome.shape == (2, 1) and bm.counts()["no_rocking"] == 2
 
 
+def test_a_file_without_coordinates_loads_and_converts(tmp_path):
+    """A map file without the batch axes' coordinates (as `save` wrote before
+    it kept them) reads as before; its leading axes are "batch" ones."""
+    pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    names = [f for f in _maps._FIELDS if f not in ("max_rotation", "uplift_time")]
+    cube = {k: np.zeros((3, 2, 1), dtype=int) for k in names}
+    cube |= dict(max_rotation=np.zeros((3, 2, 1)), uplift_time=np.ones((3, 2, 1)))
+    bm = jr.BehaviorMap.load(_saved_map(tmp_path, **cube))
+    assert bm.coordinates is None and bm.outcome.shape == (3, 2, 1)
+    assert bm.to_xarray().outcome.dims == ("batch", "slenderness", "size")
+    assert bm.select(2).to_xarray().outcome.dims == ("slenderness", "size")
+    bm.save(tmp_path / "map.nc")
+    back = jr.BehaviorMap.load(tmp_path / "map.nc")
+    assert back.coordinates is None and back.motion == "m"
+    np.testing.assert_array_equal(back.uplift_time, bm.uplift_time)
+
+
 @pytest.mark.parametrize(
     "changes, message",
     [
