@@ -6,7 +6,6 @@ import os
 import time
 import zipfile
 from concurrent.futures import Executor, ThreadPoolExecutor
-from contextlib import nullcontext
 
 import equinox as eqx
 import jax
@@ -798,8 +797,8 @@ class _ChunkRunner:
     one thread per CPU core: XLA releases the GIL, so chunks run at once.
     """
 
-    def __init__(self, grid: _Grid, duration, opts, padded: int):
-        self.grid, self.padded = grid, padded
+    def __init__(self, grid: _Grid, duration, opts, padded: int, executor=None):
+        self.grid, self.padded, self.executor = grid, padded, executor
         self.motion, self.duration, self.opts = _numpy(
             (grid.motion.unlabeled(), duration, opts)
         )
@@ -831,32 +830,46 @@ class _ChunkRunner:
         )
 
     def device(self, k):
-        """Chunk k's local device."""
+        """Chunk k's local device (round-robin)."""
         return self.devices[k % len(self.devices)]
 
-    def args(self, k, index, inputs, shared, pilot):
-        """The arguments of `_map_chunk` for chunk k, on the chunk's device."""
-        return _device_args(self.task(index, inputs, shared, pilot), self.device(k))
+    def run(self, jobs, inputs, shared, pilot, done=None, bar=None) -> dict:
+        """The chunks `jobs` ({k: its cells}) of pass 1 (`pilot`) or 2 of the
+        cells `inputs` and `shared`: {k: `_compute_chunk`'s result}, and
+        done(k, result) as each ends; the progress bar `bar` counts them.
 
-    def compute(self, k, index, inputs, shared, pilot) -> dict:
-        """Chunk k on its local device (`_compute_chunk`)."""
-        task = self.task(index, inputs, shared, pilot)
-        return _compute_chunk(task, self.device(k))
+        On the executor, if any (`run_tasks`); else round-robin over the local
+        devices from one thread per CPU core, and unless the loop is compiled
+        already, the first chunk runs alone (it compiles, the others then
+        reuse the compile).
+        """
 
-    def run_all(self, ks, fn, pool, probe, bar=None):
-        """fn(k) for every k, in threads; unless the loop is compiled already
-        (`probe`: the arguments of a chunk like these), the first runs alone
-        (it compiles, the others then reuse the compile)."""
-        out = {}
-        if ks and _signature(self.args(*probe)) not in _COMPILED:
-            out[ks[0]] = fn(ks[0])
+        def task(k):
+            return self.task(jobs[k], inputs, shared, pilot)
+
+        if self.executor is not None:
+            what = "pilot chunk" if pilot else "chunk"
+            tasks = {k: task(k) for k in jobs}
+            return run_tasks(self.executor, _compute_chunk, tasks, what, done, bar)
+
+        def compute(k):
+            out = _compute_chunk(task(k), self.device(k))
+            if done is not None:
+                done(k, out)
+            return out
+
+        ks, out = list(jobs), {}
+        probe = ks and _signature(_device_args(task(ks[0]), self.device(ks[0])))
+        if ks and probe not in _COMPILED:
+            out[ks[0]] = compute(ks[0])
             if bar is not None:
                 bar.update(1)
         rest = ks[len(out) :]
-        for k, result in zip(rest, pool.map(fn, rest)):
-            out[k] = result
-            if bar is not None:
-                bar.update(1)
+        with ThreadPoolExecutor(max(len(self.devices), os.cpu_count() or 1)) as pool:
+            for k, result in zip(rest, pool.map(compute, rest)):
+                out[k] = result
+                if bar is not None:
+                    bar.update(1)
         return out
 
 
@@ -935,7 +948,7 @@ def behavior_map(
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
-    runner = _ChunkRunner(grid, duration, opts, padded)
+    runner = _ChunkRunner(grid, duration, opts, padded, executor)
     if store is not None:
         key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
@@ -951,61 +964,36 @@ def behavior_map(
         )
     useful = executed = 0
     if len(results) < chunks:
-        threads = max(len(runner.devices), os.cpu_count() or 1)
-        with ThreadPoolExecutor(threads) if executor is None else nullcontext() as pool:
-            blank = grid.blank_carries()
-            pilot_chunks = dict(
-                enumerate(
-                    np.arange(i, min(i + chunk, grid.pilots))
-                    for i in range(0, grid.pilots, chunk)
-                )
-            )
-            probe = (0, pilot_chunks[0], grid.pilot_inputs, blank, True)
+        # Pass 1: the pilots, from t = 0 to where their cells part ways.
+        blank = grid.blank_carries()
+        pilots = range(0, grid.pilots, chunk)
+        pilots = {
+            k: np.arange(i, min(i + chunk, grid.pilots)) for k, i in enumerate(pilots)
+        }
+        done = runner.run(pilots, grid.pilot_inputs, blank, True)
+        leaves = zip(*(done[k]["carries"] for k in range(len(done))))
+        carries = jax.tree_util.tree_unflatten(
+            jax.tree_util.tree_structure(blank), map(np.concatenate, leaves)
+        )
+        starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
+        useful = sum(int(d["useful"]) for d in done.values())
+        executed = sum(int(d["executed"]) for d in done.values())
+        # Cells by start time (the most work first), dealt to the chunks in
+        # turn: chunks of equal work, and short analyses fill each one's tail.
+        # A store keeps its first run's order: a rerun whose pilots differ in
+        # their last bits (other hardware) deals the same chunks.
+        order = np.argsort(starts.t, kind="stable")
+        if store is not None:
+            order = store.dealt(order)
+        cells = {k: order[k::chunks] for k in range(chunks) if k not in results}
 
-            def run(jobs, inputs, shared, pilot, done=None, bar=None):
-                """The chunks `jobs` ({k: its cells}) of pass 1 (`pilot`) or
-                2: {k: `_compute_chunk`'s result}; done(k, result) as each ends."""
-                if executor is not None:
-                    tasks = {
-                        k: runner.task(i, inputs, shared, pilot)
-                        for k, i in jobs.items()
-                    }
-                    what = "pilot chunk" if pilot else "chunk"
-                    return run_tasks(executor, _compute_chunk, tasks, what, done, bar)
-
-                def fn(k):
-                    out = runner.compute(k, jobs[k], inputs, shared, pilot)
-                    if done is not None:
-                        done(k, out)
-                    return out
-
-                return runner.run_all(list(jobs), fn, pool, probe, bar)
-
-            # Pass 1: the pilots, from t = 0 to where their cells part ways.
-            done = run(pilot_chunks, grid.pilot_inputs, blank, True)
-            leaves = zip(*(done[k]["carries"] for k in range(len(done))))
-            carries = jax.tree_util.tree_unflatten(
-                jax.tree_util.tree_structure(blank), map(np.concatenate, leaves)
-            )
-            starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
-            useful = sum(int(d["useful"]) for d in done.values())
-            executed = sum(int(d["executed"]) for d in done.values())
-            # Cells by start time (the most work first), dealt to the chunks in
-            # turn: chunks of equal work, and short analyses fill each one's
-            # tail. A store keeps its first run's order: a rerun whose pilots
-            # differ in their last bits (other hardware) deals the same chunks.
-            order = np.argsort(starts.t, kind="stable")
+        def finished(k, out):
+            """Pass 2's chunk k: its cells ("index") join its results."""
+            out["index"] = cells[k]
             if store is not None:
-                order = store.dealt(order)
-            cells = {k: order[k::chunks] for k in range(chunks) if k not in results}
+                store.write(k, out)
 
-            def finished(k, out):
-                """Pass 2's chunk k: its cells ("index") join its results."""
-                out["index"] = cells[k]
-                if store is not None:
-                    store.write(k, out)
-
-            results |= run(cells, grid.cell_inputs, starts, False, finished, bar)
+        results |= runner.run(cells, grid.cell_inputs, starts, False, finished, bar)
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - t
