@@ -84,6 +84,23 @@ def test_a_suite_map_over_bases_as_labeled_arrays(records, tmp_path):
     assert len(set(np.unique(bm.outcome))) >= 2  # the labels pick different cells
 
 
+def test_the_rest_rule_is_converged_under_a_record(records):
+    """Cells of the Pacoima Dam map whose response a rule on the rebound alone
+    changes (outcome, or max rotation by 1e-3 to 1e-2, between rest tolerances
+    1e-6 and 1e-8): the rule that also waits for the chatter to end before
+    the ground can lift the block gives the same results at 1e-6 and 1e-9."""
+    lam, size = np.array([3.6, 4.7, 6.0]), np.array([1.8, 3.1])
+    maps = [
+        jr.behavior_map(lam, size, jr.FixedBase(), records[0], rest_tolerance=tol)
+        for tol in (1e-6, 1e-9)
+    ]
+    np.testing.assert_array_equal(maps[0].outcome, maps[1].outcome)
+    np.testing.assert_allclose(maps[0].max_rotation, maps[1].max_rotation, rtol=1e-9)
+    assert np.all(maps[1].impacts >= maps[0].impacts)
+    assert np.sum(maps[1].impacts) > np.sum(maps[0].impacts)  # the rule ran
+    assert set(np.unique(maps[0].outcome)) == {1, 2}
+
+
 def test_scaled_records_equal_records_of_scaled_samples(records):
     record = records[0]
     by_hand = jr.Record(2.5 * np.asarray(record.samples), record.dt)
