@@ -271,7 +271,8 @@ def fragility(
         scales: amplitude factors (> 0) applied to every motion; None: the
             motions as given.
         measure: "pga", "pgv" or "pga_ratio".
-        **map_options: passed to `behavior_map` (rtol, duration, ...).
+        **map_options: passed to `behavior_map` (rtol, duration, store,
+            executor, ...).
 
     Returns:
         A `Fragility`: one row per analysis (scales first, then motions),

@@ -125,7 +125,7 @@ def overturning_spectrum(
         frequency_ratio: omega_p / p (-), a 1-D array of values > 0.
         amplitude_ratio: a_p / (g tan alpha) (-), a 1-D array of values > 0.
         **map_options: passed to `behavior_map` (`duration` in s, `rtol`,
-            ...).
+            `executor`, ...).
 
     Returns:
         An `OverturningSpectrum` of shape (n_frequency, n_amplitude).

@@ -8,6 +8,7 @@ any compilation.
 """
 
 import argparse
+import contextlib
 import math
 import os
 import re
@@ -275,6 +276,13 @@ def _parser():
         "--store",
         default=None,
         help="folder for finished chunks: an interrupted map resumes",
+    )
+    m.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="a Dask scheduler (e.g. tcp://head-node:8786) whose workers compute "
+        "the chunks; needs jaxrock[dask]",
     )
 
     f = command(
@@ -606,6 +614,22 @@ def _fit_pulse(a, out: str) -> int:
     return 0
 
 
+@contextlib.contextmanager
+def _executor(scheduler: str | None):
+    """The executor of the Dask scheduler at `scheduler` (None: none)."""
+    if scheduler is None:
+        yield None
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError(
+            "--scheduler needs Dask: pip install 'jaxrock[dask]'"
+        ) from None
+    with Client(scheduler) as client:
+        yield client.get_executor()
+
+
 def _run(a) -> int:
     if a.command == "pulses":
         return _pulses()
@@ -682,13 +706,20 @@ def _run(a) -> int:
         return 0
     bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
     maps = []
-    for b in bases:
-        store = None if a.store is None else os.path.join(a.store, type(b).__name__)
-        bm = jr.behavior_map(
-            a.slenderness, a.size, b, motion, chunk_size=a.chunk_size, store=store
-        )
-        print(bm.summary().replace(bm.motion, name))
-        maps.append(bm)
+    with _executor(a.scheduler) as executor:
+        for b in bases:
+            store = None if a.store is None else os.path.join(a.store, type(b).__name__)
+            bm = jr.behavior_map(
+                a.slenderness,
+                a.size,
+                b,
+                motion,
+                chunk_size=a.chunk_size,
+                store=store,
+                executor=executor,
+            )
+            print(bm.summary().replace(bm.motion, name))
+            maps.append(bm)
     stem = os.path.splitext(out)[0]
     for b, bm in zip(bases, maps):
         bm.save(f"{stem}_{type(b).__name__}.npz")

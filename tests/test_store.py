@@ -8,6 +8,7 @@ import pytest
 
 import jaxrock as jr
 from jaxrock import _maps
+from jaxrock._store import ChunkStore
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
@@ -73,6 +74,30 @@ def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
     for k in ("outcome", "impacts", "status", "max_rotation"):
         np.testing.assert_array_equal(getattr(again, k), getattr(linear_map, k))
     assert chunk.stat().st_size > 100  # written again, whole
+
+
+def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
+    """The store keeps the order in which its first run dealt the cells to the
+    chunks; a rerun, whatever its own pilots' order (other hardware), computes
+    the missing chunks of that order, and chunks of two orders are refused."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    order = np.load(tmp_path / "order.npz")["order"]
+    assert sorted(order) == list(range(15))
+    key = (tmp_path / "manifest.json").read_text()
+    store = ChunkStore(tmp_path, key, ())
+    store.write("order", {"order": order[::-1].copy()})  # as if dealt in reverse
+    for chunk in sorted(tmp_path.glob("chunk_*.npz"))[1:]:
+        chunk.unlink()
+    with pytest.raises(RuntimeError, match="every cell exactly once"):
+        jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    (tmp_path / "chunk_000000.npz").unlink()
+    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    for k in range(4):
+        chunk = np.load(tmp_path / f"chunk_{k:06d}.npz")
+        np.testing.assert_array_equal(chunk["index"], order[::-1][k::4])
+    np.testing.assert_array_equal(again.outcome, linear_map.outcome)
+    np.testing.assert_allclose(again.max_rotation, linear_map.max_rotation, rtol=1e-9)
 
 
 def _saved_map(tmp_path, **changes):
