@@ -1,8 +1,17 @@
-"""JAX's persistent compilation cache, on by default in a per-user folder, so
-that a second run of a map or an analysis reuses the compiled programs of the
-first."""
+"""JAX's persistent compilation cache, on by default in a per-user folder,
+so that a second run of a map or an analysis reuses the compiled programs of
+the first; and in its `traced/` folder the traced chunk loops of maps
+(`jax.export`), so that a second run of a map skips tracing as well."""
 
+import functools
+import hashlib
+import importlib.metadata
+import io
+import json
 import os
+import pickle
+import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import jax
@@ -11,6 +20,11 @@ import jax
 # ("off", "0", "none" or "false").
 ENVIRONMENT = "JAXROCK_CACHE"
 _OFF = {"off", "0", "none", "false", "no"}
+# Where traced code may come from: a traced program is kept only when its
+# static structure names no class or function from elsewhere (a user's own
+# isolator or solver: its code could change unseen), and these packages'
+# versions (jaxrock's: its source files) are part of its key.
+_PACKAGES = ("jax", "jaxlib", "equinox", "diffrax", "lineax", "optimistix", "numpy")
 
 
 def default_folder() -> Path:
@@ -19,12 +33,17 @@ def default_folder() -> Path:
     return Path(base) / "jaxrock" / "xla"
 
 
+# The folder `enable_compilation_cache` gave JAX (None: none, or the user's).
+_FOLDER: str | None = None
+
+
 def enable_compilation_cache() -> str | None:
     """Point JAX's persistent compilation cache at jaxrock's folder, unless
     the user configures JAX's cache already (`JAX_COMPILATION_CACHE_DIR` or
     `jax.config.jax_compilation_cache_dir`) or turns it off with
     `JAXROCK_CACHE=off`. `JAXROCK_CACHE=FOLDER` moves it. Returns the folder
     in use by JAX (None: no cache)."""
+    global _FOLDER
     setting = os.environ.get(ENVIRONMENT, "").strip()
     configured = jax.config.jax_compilation_cache_dir
     if setting.lower() in _OFF or configured:
@@ -37,4 +56,92 @@ def enable_compilation_cache() -> str | None:
     jax.config.update("jax_compilation_cache_dir", str(folder))
     # Programs that compile in less than this are not worth a file.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    return str(folder)
+    _FOLDER = str(folder)
+    return _FOLDER
+
+
+def traced_folder() -> Path | None:
+    """`traced/` in jaxrock's cache folder, where traced programs are kept;
+    None when JAX's cache is not jaxrock's (turned off, or the user's own,
+    which jaxrock leaves as it is)."""
+    if _FOLDER is None or jax.config.jax_compilation_cache_dir != _FOLDER:
+        return None
+    return Path(_FOLDER) / "traced"
+
+
+@functools.cache
+def code_version() -> str:
+    """What traced code depends on besides its arguments: the versions of
+    `_PACKAGES`, a digest of jaxrock's source files (an edited checkout is
+    another version) and the platform."""
+    digest = hashlib.sha256()
+    root = Path(__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes() + b"\0")
+    versions = {p: importlib.metadata.version(p) for p in _PACKAGES}
+    return json.dumps(
+        versions | {"jaxrock": digest.hexdigest(), "platform": jax.default_backend()}
+    )
+
+
+class _Globals(pickle.Unpickler):
+    """Reads a pickle back, recording the modules of the classes and
+    functions it names."""
+
+    def __init__(self, data: bytes):
+        super().__init__(io.BytesIO(data))
+        self.modules: set[str] = set()
+
+    def find_class(self, module, name):
+        self.modules.add(module)
+        return super().find_class(module, name)
+
+
+def static_key(tree) -> str | None:
+    """A digest of `tree` (e.g. a pytree structure with its static fields),
+    by pickle; None when it cannot be pickled or names code outside jaxrock
+    and `_PACKAGES` (its changes would go unseen)."""
+    try:
+        data = pickle.dumps(tree)
+        names = _Globals(data)
+        names.load()
+    except Exception:  # anything unpicklable: not kept
+        return None
+    allowed = {"builtins", "jaxrock", *_PACKAGES}
+    if any(m.split(".")[0] not in allowed for m in names.modules):
+        return None
+    return _digest(data)
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def exported(name: str, key: str, export: Callable[[], jax.export.Exported]):
+    """The program `export()` returns, kept in `traced_folder()` as
+    `NAME-DIGEST.jaxexport` (DIGEST: of `key`, which must name everything
+    the program depends on). A kept program is read instead of calling
+    `export`; a file that is unreadable or holds another key is replaced."""
+    folder = traced_folder()
+    if folder is None:
+        return export()
+    key = json.dumps([code_version(), jax.config.jax_enable_x64, key])
+    path = folder / f"{name}-{_digest(key.encode())[:32]}.jaxexport"
+    try:
+        head, payload = path.read_bytes().split(b"\n", 1)
+        if json.loads(head) == {"key": key, "sha256": _digest(payload)}:
+            return jax.export.deserialize(bytearray(payload))
+    except Exception:  # missing or damaged: export again
+        pass
+    program = export()
+    partial = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}")
+    try:
+        payload = program.serialize()
+        head = json.dumps({"key": key, "sha256": _digest(payload)})
+        folder.mkdir(parents=True, exist_ok=True)
+        partial.write_bytes(head.encode() + b"\n" + bytes(payload))
+        os.replace(partial, path)  # whole files only, also between processes
+    except Exception:  # a read-only folder...: the program is used, not kept
+        partial.unlink(missing_ok=True)
+    return program

@@ -3,6 +3,7 @@
 import hashlib
 import json
 import os
+import threading
 import time
 import zipfile
 from concurrent.futures import Executor, ThreadPoolExecutor
@@ -12,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _cache
 from ._block import Block
 from ._dynamics import Phase
 from ._executor import check_executor, run_tasks
@@ -756,7 +758,7 @@ def _device_args(task, device) -> tuple:
     (`_ChunkRunner.task`): on `device`, but the options (uncommitted)."""
     *head, opts, count, pilot = task
     opts = jax.tree_util.tree_map(
-        lambda x: jnp.asarray(x) if isinstance(x, np.ndarray) else x, opts
+        lambda x: jax.device_put(x) if isinstance(x, np.ndarray) else x, opts
     )
     return (
         *jax.device_put(tuple(head), device),
@@ -776,14 +778,69 @@ def _compute_chunk(task, device=None) -> dict:
     those that advanced an analysis ("executed", "useful").
     """
     args = _device_args(task, device or jax.local_devices()[0])
-    responses, carries, executed, useful = jax.device_get(_map_chunk(*args, LANE_WIDTH))
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    program = _chunk_program(treedef, leaves)
+    fields, carries, executed, useful = jax.device_get(program(*leaves))
     _COMPILED.add(_signature(args))
     count, pilot = int(task[-2]), bool(task[-1])
     if pilot:
-        out = {"carries": [x[:count] for x in jax.tree_util.tree_leaves(carries)]}
+        out = {"carries": [x[:count] for x in carries]}
     else:
-        out = {f: np.asarray(getattr(responses, f))[:count] for f in _FIELDS}
+        out = {f: np.asarray(x)[:count] for f, x in zip(_FIELDS, fields)}
     return out | {"executed": np.asarray(executed), "useful": np.asarray(useful)}
+
+
+# The chunk loops of this process (see `_chunk_program`).
+_PROGRAMS: dict = {}
+_PROGRAMS_LOCK = threading.Lock()
+
+
+def _chunk_program(treedef, leaves):
+    """`_map_chunk` for arguments of the structure `treedef` (static fields
+    included) and the shapes of `leaves` (jax Arrays), on `LANE_WIDTH` lanes,
+    as a function of the leaves that returns the responses' `_FIELDS`, the
+    carries' leaves, and the lane-steps executed and useful.
+
+    Made once per process. With a cache folder (`_cache.traced_folder`), the
+    traced program is exported (`jax.export`) and kept there, and a later
+    process reads it instead of tracing again; then JAX's compilation cache
+    holds its compiled code. A structure that names code outside jaxrock and
+    its dependencies (a user's isolator class), or a loop that cannot be
+    exported, is traced in every process.
+    """
+    specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
+    with _PROGRAMS_LOCK:
+        if (treedef, specs) not in _PROGRAMS:
+            _PROGRAMS[treedef, specs] = _make_program(treedef, specs)
+        return _PROGRAMS[treedef, specs]
+
+
+def _make_program(treedef, specs):
+    """`_chunk_program`'s function, traced here or read from the folder."""
+
+    def map_chunk(*leaves):
+        args = jax.tree_util.tree_unflatten(treedef, leaves)
+        responses, carries, executed, useful = _map_chunk(*args, LANE_WIDTH)
+        fields = tuple(getattr(responses, f) for f in _FIELDS)
+        return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
+
+    traced = jax.jit(map_chunk)
+    static = _cache.static_key(treedef)
+    if static is None or _cache.traced_folder() is None:
+        return traced
+    shapes = [(s.shape, str(s.dtype)) for s in specs]
+    key = json.dumps([static, shapes, LANE_WIDTH])
+    try:
+        program = _cache.exported(
+            "map_chunk", key, lambda: jax.export.export(traced)(*specs)
+        )
+    except Exception:  # not exportable (a host callback...): traced each time
+        return traced
+
+    def map_chunk_exported(*leaves):
+        return program.call(*leaves)
+
+    return jax.jit(map_chunk_exported)
 
 
 class _ChunkRunner:

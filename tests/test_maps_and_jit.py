@@ -14,6 +14,11 @@ LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
 SIZE = np.array([0.3, 1.0, 2.5])
 
 
+def _compiles() -> int:
+    """The chunk loops compiled in this process (one per program and device)."""
+    return sum(p._cache_size() for p in _maps._PROGRAMS.values())
+
+
 def test_new_parameters_do_not_recompile():
     run = _simulate._run_jit._cached
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
@@ -93,10 +98,13 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     (a pilot) and start its cells from there; the same loop with every cell
     run from t = 0 gives the very same numbers, step counts included."""
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
-    calls, original = [], _maps._map_chunk
-    monkeypatch.setattr(
-        _maps, "_map_chunk", lambda *a: calls.append(bool(a[-2])) or original(*a)
-    )
+    calls, original = [], _maps._compute_chunk
+
+    def counting(task, device=None):
+        calls.append(bool(task[-1]))  # pilot pass or not
+        return original(task, device)
+
+    monkeypatch.setattr(_maps, "_compute_chunk", counting)
     shared = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=None, progress=False)
     assert calls == [True, False]  # the pilots, then the cells from their carries
     lanes = _maps.LANE_WIDTH  # a map of 15 cells runs as one chunk of 64 lanes
@@ -115,17 +123,13 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     opts = jr.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
     duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
     count, pilot = np.asarray(LAM.size * SIZE.size), np.asarray(False)
-    compiles = original._cached._cache_size()
-    lam, r, bases, motions, initial, duration, count, pilot = jax.device_put(
-        (lam, r, bases, motions, initial, duration, count, pilot), jax.devices()[0]
-    )  # committed to a device, as in maps
-    alone, *_ = original(
-        lam, r, bases, motions, None, initial, duration, opts, count, pilot, lanes
+    before = _compiles()
+    alone = original(
+        (lam, r, bases, motions, None, initial, duration, opts, count, pilot)
     )
-    assert original._cached._cache_size() == compiles  # the map's own loop
+    assert _compiles() == before  # the map's own loop
     for k in _maps._FIELDS:
-        expected = np.asarray(getattr(alone, k))[: int(count)]
-        expected = expected.reshape(shared.outcome.shape)
+        expected = alone[k].reshape(shared.outcome.shape)
         np.testing.assert_array_equal(getattr(shared, k), expected, err_msg=k)
 
 
@@ -141,7 +145,7 @@ def test_progress_bar_counts_each_chunk_once(linear_map, capsys):
 
 
 def test_new_map_parameters_reuse_compile(linear_map):
-    before = _maps._map_chunk._cached._cache_size()
+    before = _compiles()
     jr.behavior_map(
         LAM + 0.05,
         SIZE * 1.1,
@@ -149,7 +153,7 @@ def test_new_map_parameters_reuse_compile(linear_map):
         jr.near_fault_pulse("Northridge JFA/SN"),
         chunk_size=4,
     )
-    assert _maps._map_chunk._cached._cache_size() == before
+    assert _compiles() == before
 
 
 def test_maps_of_other_sizes_reuse_compile():
@@ -164,8 +168,8 @@ def test_maps_of_other_sizes_reuse_compile():
     for k, (lam, size) in enumerate(grids):
         maps.append(jr.behavior_map(lam, size, jr.FixedBase(), PULSE))
         if k == 0:
-            after_first = _maps._map_chunk._cached._cache_size()
-    assert _maps._map_chunk._cached._cache_size() == after_first
+            after_first = _compiles()
+    assert _compiles() == after_first
     for bm in maps:
         assert bm.outcome.shape == (len(bm.slenderness), len(bm.size))
         assert np.all(bm.status == jr.Status.SUCCESS) and np.all(bm.steps > 0)

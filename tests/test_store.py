@@ -31,13 +31,13 @@ def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
     assert len(chunks) == 4  # 15 cells in chunks of 4
     chunks[2].unlink()  # as if interrupted before the third chunk was written
     calls = []
-    original = _maps._map_chunk
+    original = _maps._compute_chunk
 
-    def counting(*args):
-        calls.append(bool(args[-2]))  # pilot pass or not
-        return original(*args)
+    def counting(task, device=None):
+        calls.append(bool(task[-1]))  # pilot pass or not
+        return original(task, device)
 
-    monkeypatch.setattr(_maps, "_map_chunk", counting)
+    monkeypatch.setattr(_maps, "_compute_chunk", counting)
     again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
     assert calls.count(False) == 1  # the pilots rerun (they are not stored)
     for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
