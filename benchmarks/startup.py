@@ -18,6 +18,9 @@ tracing count as small programs only. Prints Markdown tables and writes
 benchmarks/results/startup.{json,md}.
 
     python benchmarks/startup.py [--repeats 3] [--tag startup]
+
+It measures the jaxrock that `python` imports outside the checkout: the
+installed one, or the one on PYTHONPATH.
 """
 
 import argparse
@@ -69,10 +72,16 @@ def _env(cache):
 
 
 def _run(args, cache) -> tuple[float, str]:
-    """Wall time (s) and stdout of `python ARGS` in a fresh process."""
+    """Wall time (s) and stdout of `python ARGS` in a fresh process, in the
+    cache's parent folder (not in a checkout, whose jaxrock would shadow the
+    installed one or the one on PYTHONPATH)."""
     t = time.perf_counter()
     out = subprocess.run(
-        [sys.executable, *args], env=_env(cache), capture_output=True, text=True
+        [sys.executable, *args],
+        env=_env(cache),
+        cwd=Path(cache).parent,
+        capture_output=True,
+        text=True,
     )
     seconds = time.perf_counter() - t
     if out.returncode != 0:
@@ -161,22 +170,41 @@ def main():
                     print(f"{name}, {state}: {seconds:.2f} s", flush=True)
             cache = Path(tmp) / f"split-{r}"
             for state in ("cold", "warm"):
-                _, stdout = _run([__file__, "--worker"], cache)
+                _, stdout = _run([str(Path(__file__).resolve()), "--worker"], cache)
                 splits[state].append(json.loads(stdout.splitlines()[-1]))
                 print(f"split, {state}: {splits[state][-1]}", flush=True)
-    load = (load_before, os.getloadavg())
-    med = {
-        name: {s: statistics.median(v) for s, v in runs.items()}
-        for name, runs in times.items()
-    }
-    med_split = {
-        s: {k: _median(rows, k) for k in rows[0]} for s, rows in splits.items()
-    }
+    result = dict(
+        repeats=a.repeats,
+        cores=os.cpu_count(),
+        load_before=load_before,
+        load_after=os.getloadavg(),
+        median={
+            name: {s: statistics.median(v) for s, v in runs.items()}
+            for name, runs in times.items()
+        },
+        times=times,
+        split_median={
+            s: {k: _median(rows, k) for k in rows[0]} for s, rows in splits.items()
+        },
+        split=splits,
+    )
+    md = markdown(result)
+    print(md)
+    out = Path(__file__).resolve().parent / "results"
+    out.mkdir(exist_ok=True)
+    (out / f"{a.tag}.json").write_text(json.dumps(result, indent=2))
+    (out / f"{a.tag}.md").write_text(md + "\n")
+
+
+def markdown(result) -> str:
+    """The tables of a result (see `main`)."""
+    load = [
+        ", ".join(f"{x:.1f}" for x in result[k]) for k in ("load_before", "load_after")
+    ]
     md = [
-        f"Wall time of a fresh process, median of {a.repeats}; load average "
-        f"(1, 5, 15 min) {', '.join(f'{x:.1f}' for x in load[0])} before and "
-        f"{', '.join(f'{x:.1f}' for x in load[1])} after, on "
-        f"{os.cpu_count()} cores.",
+        f"Wall time of a fresh process, median of {result['repeats']}; load "
+        f"average (1, 5, 15 min) {load[0]} before and {load[1]} after, on "
+        f"{result['cores']} cores.",
         "",
         "| run | empty cache (s) | warm cache (s) |",
         "|---|---|---|",
@@ -184,9 +212,9 @@ def main():
     md += [
         f"| {name} | {m['cold']:.1f} | "
         + (f"{m['warm']:.1f} |" if "warm" in m else "- |")
-        for name, m in med.items()
+        for name, m in result["median"].items()
     ]
-    cold, warm = med_split["cold"], med_split["warm"]
+    cold, warm = result["split_median"]["cold"], result["split_median"]["warm"]
     md += [
         "",
         "The CLI's first map (fixed base, 2,440 cells) in one process:",
@@ -198,27 +226,12 @@ def main():
     md += [
         f"| the map, in all | {cold['map_s']:.2f} | {warm['map_s']:.2f} |",
         "",
-        f"Chunk loop: {cold['trace_count']:.0f} trace(s), "
-        f"{cold['compile_count']:.0f} compile(s) cold, "
-        f"{warm['trace_count']:.0f} trace(s) warm; small programs: "
-        f"{cold['small_compiles']:.0f} compiles cold, "
-        f"{warm['small_compiles']:.0f} warm.",
+        f"The chunk loop compiles {cold['compile_count']:.0f} time(s) (pilots "
+        f"and cells share it); small programs compile "
+        f"{cold['small_compiles']:.0f} times with an empty cache, "
+        f"{warm['small_compiles']:.0f} with a warm one.",
     ]
-    print("\n".join(md))
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    result = dict(
-        repeats=a.repeats,
-        cores=os.cpu_count(),
-        load_before=load[0],
-        load_after=load[1],
-        median=med,
-        times=times,
-        split_median=med_split,
-        split=splits,
-    )
-    (out / f"{a.tag}.json").write_text(json.dumps(result, indent=2))
-    (out / f"{a.tag}.md").write_text("\n".join(md) + "\n")
+    return "\n".join(md)
 
 
 if __name__ == "__main__":

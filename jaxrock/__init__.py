@@ -3,8 +3,9 @@
 Importing jaxrock enables JAX's float64 mode (`jax_enable_x64`): every result
 is float64 unless you turn it off again. It also turns on JAX's persistent
 compilation cache in `~/.cache/jaxrock/xla` (a second run reuses the compiled
-programs of the first), unless JAX's cache is configured already;
-`JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off` turns it off.
+programs of the first, and maps their traced loops), unless JAX's cache is
+configured already; `JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off`
+turns it off.
 """
 
 import importlib.metadata

@@ -119,14 +119,23 @@ def _digest(data: bytes) -> str:
 
 
 def exported(name: str, key: str, export: Callable[[], jax.export.Exported]):
-    """The program `export()` returns, kept in `traced_folder()` as
-    `NAME-DIGEST.jaxexport` (DIGEST: of `key`, which must name everything
-    the program depends on). A kept program is read instead of calling
-    `export`; a file that is unreadable or holds another key is replaced."""
+    """The program `export()` returns, kept in `traced_folder()`.
+
+    Its file, `NAME-DIGEST.jaxexport`, is keyed by `key` (what the program
+    depends on besides code: its static structure, shapes, ...), by
+    `code_version()` and by the settings that change what tracing makes
+    (float64, matmul precision, Equinox's error mode). A kept program is read
+    instead of calling `export`; a file that is damaged or holds another key
+    is replaced. Without a folder, `export()`."""
     folder = traced_folder()
     if folder is None:
         return export()
-    key = json.dumps([code_version(), jax.config.jax_enable_x64, key])
+    settings = [
+        jax.config.jax_enable_x64,
+        str(jax.config.jax_default_matmul_precision),
+        os.environ.get("EQX_ON_ERROR", ""),
+    ]
+    key = json.dumps([code_version(), settings, key])
     path = folder / f"{name}-{_digest(key.encode())[:32]}.jaxexport"
     try:
         head, payload = path.read_bytes().split(b"\n", 1)

@@ -801,12 +801,12 @@ def _chunk_program(treedef, leaves):
     as a function of the leaves that returns the responses' `_FIELDS`, the
     carries' leaves, and the lane-steps executed and useful.
 
-    Made once per process. With a cache folder (`_cache.traced_folder`), the
-    traced program is exported (`jax.export`) and kept there, and a later
-    process reads it instead of tracing again; then JAX's compilation cache
-    holds its compiled code. A structure that names code outside jaxrock and
-    its dependencies (a user's isolator class), or a loop that cannot be
-    exported, is traced in every process.
+    Made once per process. With jaxrock's cache folder
+    (`_cache.traced_folder`), the traced program is exported (`jax.export`)
+    and kept there, and a later process reads it instead of tracing again
+    (JAX's compilation cache beside it holds its compiled code). A structure
+    that names code outside jaxrock and its dependencies (a user's isolator
+    class), or a loop that cannot be exported, is traced in every process.
     """
     specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
     with _PROGRAMS_LOCK:
