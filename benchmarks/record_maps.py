@@ -5,11 +5,16 @@ grid, one compile).
 
 For each: compile time (first call minus the best run), run time (best of
 --repeats), analyses per second, solver steps per analysis, lane efficiency
-(useful over executed lane-steps) and peak memory of the process. Prints a
-Markdown table and writes benchmarks/results/record_maps.{json,md}.
+(useful over executed lane-steps) and peak memory of the process. With
+--converged, the Pacoima maps run again with a 100 times tighter rest
+tolerance (the cells whose outcome or max rotation, by more than 1e-6,
+changes: none if the rest rule is converged) and with a 100 times tighter
+rtol and atol (the cells that change there: "sensitive" cells, whose
+response depends on the solver's last digits). Prints a Markdown table and
+writes benchmarks/results/record_maps.{json,md}.
 
     python benchmarks/record_maps.py [--repeats 2] [--bases fixed,linear,fps]
-        [--no-suite] [--tag NAME]
+        [--no-suite] [--converged] [--tag NAME]
 """
 
 import argparse
@@ -64,11 +69,18 @@ def _row(name, motion, bm, compile_s):
     )
 
 
+def _changed(a, b, tol=1e-6):
+    """Cells whose outcome differs, or whose max rotation differs by > tol."""
+    moved = np.abs(np.asarray(a.max_rotation) - np.asarray(b.max_rotation)) > tol
+    return int(np.sum((np.asarray(a.outcome) != np.asarray(b.outcome)) | moved))
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--bases", default="fixed,linear,fps")
     p.add_argument("--no-suite", action="store_true")
+    p.add_argument("--converged", action="store_true")
     p.add_argument("--tag", default="record_maps")
     a = p.parse_args()
     lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
@@ -81,6 +93,20 @@ def main():
             a.repeats,
         )
         rows.append(_row(name, "Pacoima Dam 164", bm, compile_s))
+        if a.converged:
+            again = dict(progress=False)
+            rest = jr.behavior_map(
+                lam, size, BASES[name], record, rest_tolerance=1e-8, **again
+            )
+            tight = jr.behavior_map(
+                lam, size, BASES[name], record, rtol=1e-10, atol=1e-12, **again
+            )
+            rows[-1] |= dict(
+                rest_tolerance_changed=_changed(bm, rest),
+                impacts_ratio=float(np.sum(rest.impacts) / np.sum(bm.impacts)),
+                rtol_changed=_changed(bm, tight),
+                rtol_changed_1e3=_changed(bm, tight, 1e-3),
+            )
         print(rows[-1], flush=True)
     if not a.no_suite:
         suite = jr.Record.stack(jr.records.fema_p695("nearfield_pulse"))
@@ -105,6 +131,20 @@ def main():
         f"{r['not_converged']} | {r['peak_rss_mb']:.0f} |"
         for r in rows
     ]
+    converged = [r for r in rows if "rtol_changed" in r]
+    if converged:
+        md += [
+            "",
+            "| map | rest tolerance 1e-8: cells changed | impacts x "
+            "| rtol 1e-10: cells changed (> 1e-6 / > 1e-3) |",
+            "|---|---|---|---|",
+        ]
+        md += [
+            f"| {r['map']} | {r['rest_tolerance_changed']} | "
+            f"{r['impacts_ratio']:.2f} | {r['rtol_changed']} / "
+            f"{r['rtol_changed_1e3']} |"
+            for r in converged
+        ]
     print("\n".join(md))
     out = Path(__file__).resolve().parent / "results"
     out.mkdir(exist_ok=True)

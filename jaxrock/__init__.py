@@ -23,6 +23,7 @@ from . import records as records  # noqa: E402
 from ._block import Block as Block  # noqa: E402
 from ._fit import PulseFit as PulseFit  # noqa: E402
 from ._fit import fit_pulse as fit_pulse
+from ._fit import score_pulse as score_pulse
 from ._fragility import Fragility as Fragility  # noqa: E402
 from ._fragility import fit_lognormal as fit_lognormal
 from ._fragility import fragility as fragility
@@ -59,6 +60,7 @@ from ._isolators import (
 from ._isolators import (
     LinearIsolator as LinearIsolator,
 )
+from ._labeled import Coordinates as Coordinates  # noqa: E402
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
 from ._record import (

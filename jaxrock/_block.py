@@ -42,8 +42,8 @@ class Block(AbstractChecked):
         ValueError: `size` must be finite, >= 0.001 and <= 1000 (m), got 0.0
     """
 
-    slenderness: Float[Array, "..."] = parameter("slenderness")
-    size: Float[Array, "..."] = parameter("size")
+    slenderness: Float[Array, "..."] = parameter("slenderness", "1")
+    size: Float[Array, "..."] = parameter("size", "m")
 
     def constraints(self):
         # Beyond these bounds b, h or alpha lose their precision in float64 long

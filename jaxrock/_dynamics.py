@@ -84,6 +84,17 @@ def vector_field(t, y, args: Args):
     )
 
 
+def base_acceleration_bound(t, window, base_state, base, motion):
+    """A bound of |u'' + x_g''| over [t, t + window] (m/s^2): on a fixed base
+    the ground's (`AbstractGroundMotion.acceleration_bound`); on an isolator
+    the base's acceleration at t, which the isolator's force keeps smooth
+    (its rate of change is bounded by the state, and the windows of the rest
+    rule last milliseconds)."""
+    if base.n_states == 0:
+        return motion.acceleration_bound(t, t + window)
+    return jnp.abs(absolute_base_acceleration(t, base_state, base, motion))
+
+
 def absolute_base_acceleration(t, base_state, base, motion):
     """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
     if base.n_states == 0:  # a fixed base
@@ -111,13 +122,41 @@ def restitution(block: Block, base: AbstractIsolator):
     return num / den, den
 
 
-def rests_at_impact(block: Block, e, theta_dot_squared, rest_tolerance):
+def rests_at_impact(
+    block: Block, e, theta_dot_squared, rest_tolerance, lift_bound=None
+):
     """The rest rule, against Zeno chattering: rocking ends at an impact when
-    e <= 0, or when the rebound could lift the block by less than
-    `rest_tolerance` alpha, the rise (e theta'-)^2 / (2 p^2 sin alpha) of free
-    rocking from theta = 0 (linearized). `theta_dot_squared` is theta'-^2."""
+    e <= 0, or when
+
+    - the rebound could lift the block by less than `rest_tolerance` alpha:
+      the rise (e theta'-)^2 / (2 p^2 sin alpha) of free rocking from
+      theta = 0 (linearized), and
+    - the base cannot lift the block before the chatter that the rule cuts
+      short would end by itself. Under an absolute base acceleration of at
+      most L the flights after the impact decelerate at least
+      d(L) = p^2 cos(alpha) (g tan(alpha) - L) / g, so the impacts (rebounds
+      e^k e theta'-) end within S(L) = 2 e |theta'-| / (d(L) (1 - e)). With
+      L0 the base's acceleration at the impact, the rule asks that
+      `lift_bound(S)`, a bound of |u'' + x_g''| over the next S seconds, stay
+      below (g tan(alpha) + L0) / 2 for S = S((g tan(alpha) + L0) / 2): the
+      block then rests at the same time and in the same state as the chatter
+      would leave it, and the rule changes nothing but the impacts counted.
+      A chatter the base may lift goes on until it is short enough.
+
+    `theta_dot_squared` is theta'-^2; `lift_bound(window)` (m/s^2) bounds the
+    base's absolute acceleration over [t, t + window] (window 0: at t); None
+    (a base at rest after the excitation) means no base acceleration."""
     rise = e * e * theta_dot_squared / (2.0 * block.p**2 * block.b / block.size)
-    return (e <= 0) | (rise < rest_tolerance * block.alpha)
+    rest = (e <= 0) | (rise < rest_tolerance * block.alpha)
+    if lift_bound is None:
+        return rest
+    threshold = block.uplift_acceleration
+    level = 0.5 * (threshold + lift_bound(0.0))
+    # d(level) = p^2 cos(alpha) (threshold - level) / g, p^2 / g = 3 / (4 r).
+    decel = 0.75 * block.h / block.size**2 * (threshold - level)
+    window = 2.0 * e * jnp.sqrt(theta_dot_squared) / (decel * (1.0 - e))
+    window = jnp.where(rest & (decel > 0) & (e < 1), window, 0.0)
+    return (e <= 0) | (rest & (decel > 0) & (lift_bound(window) < level))
 
 
 def impact(block, base, theta_dot, base_state, rest):

@@ -23,7 +23,8 @@ _COARSE_DT = 0.02  # s, the sampling of the velocity during the Adam stage
 
 
 class PulseFit(eqx.Module):
-    """A Mavroeidis-Papageorgiou pulse fitted to a record (`fit_pulse`).
+    """A Mavroeidis-Papageorgiou pulse and how well it matches a record
+    (`fit_pulse`, `score_pulse`).
 
     With the record's baseline-corrected velocity v_k and the pulse's velocity
     p_k = p(k dt) at its samples (m/s):
@@ -32,8 +33,9 @@ class PulseFit(eqx.Module):
         energy_share = max(0, 1 - sum((v - p)^2) / sum(v^2))
 
     Attributes:
-        pulse: The fitted `MPPulse` on the record's time axis (t0 in s from
-            the record's first sample; A > 0 m/s, nu in [0, 360) degrees).
+        pulse: The `MPPulse` on the record's time axis (t0 in s from the
+            record's first sample); as `fit_pulse` fits it, A > 0 m/s and nu
+            in [0, 360) degrees.
         correlation: The normalized correlation of the two velocity histories
             (-), in [-1, 1].
         energy_share: The share of the record's velocity energy sum(v^2) that
@@ -46,7 +48,9 @@ class PulseFit(eqx.Module):
 
 
 def _velocity(samples: np.ndarray, dt: float) -> np.ndarray:
-    """Trapezoid-rule velocity (m/s) of acceleration samples (m/s^2), from 0."""
+    """Trapezoid-rule integral of samples at interval `dt` (s), from 0: the
+    velocity (m/s) of accelerations (m/s^2), the displacement (m) of
+    velocities."""
     steps = 0.5 * dt * (samples[1:] + samples[:-1])
     return np.concatenate([[0.0], np.cumsum(steps)])
 
@@ -179,6 +183,35 @@ def _starts(count: int, t_peak: float) -> np.ndarray:
     )
 
 
+def _checked(
+    record, verb: str, min_samples: int = 2, min_duration: float = 0.0
+) -> tuple[np.ndarray, float]:
+    """The samples (m/s^2) and time step (s) of one finite record, not all
+    zeros, of at least `min_samples` samples over `min_duration` (s); else
+    ValueError."""
+    if not isinstance(record, Record):
+        raise ValueError(f"`record` must be a Record, got {type(record).__name__}")
+    if record.batch_shape != ():
+        raise ValueError(
+            f"`record` must be one record, not a suite of shape "
+            f"{record.batch_shape}: {verb} one record at a time (`.select(i)`)"
+        )
+    dt = float(record.dt)
+    samples = np.asarray(record.samples, dtype=np.float64)[: int(record.length)]
+    if not np.all(np.isfinite(samples)):
+        raise ValueError("`record` has samples that are not finite (NaN or inf)")
+    n = samples.size
+    if n < min_samples or (n - 1) * dt < min_duration:
+        raise ValueError(
+            f"`record` is too short to {verb} a pulse: {n} samples over "
+            f"{(n - 1) * dt:g} s (need >= {min_samples} samples and "
+            f">= {min_duration:g} s)"
+        )
+    if not np.any(samples):
+        raise ValueError("`record` is all zeros: there is no pulse to find")
+    return samples, dt
+
+
 def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit:
     """Fit a Mavroeidis-Papageorgiou pulse to a record's velocity history.
 
@@ -208,8 +241,8 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
     shared by every record whose lengths round up to the same powers of two.
 
     Args:
-        record: One accelerogram (not a suite), at least 100 samples and 2 s
-            long, not all zeros.
+        record: One accelerogram (not a suite), finite, at least 100 samples
+            and 2 s long, not all zeros.
         starts: The number of starting points (>= 1).
         steps: The Adam steps per start (>= 1).
 
@@ -220,9 +253,12 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
         velocity energy sum(v^2) that the pulse explains.
 
     Raises:
-        ValueError: if `record` is not a single `Record`, is shorter than 100
-            samples or 2 s, or is all zeros; or if `starts` or `steps` is not
-            a positive integer (the message names the parameter).
+        ValueError: if `record` is not a single `Record`, has a sample that
+            is not finite, is shorter than 100 samples or 2 s, or is all
+            zeros; if `starts` or `steps` is not a positive integer (the
+            message names the parameter); or, after the fit, if the record
+            is shorter than the fitted pulse's period 1/f_p (it does not
+            hold a whole cycle, so the pulse is not determined).
 
     Examples:
         >>> import numpy as np, jaxrock as jr
@@ -235,35 +271,17 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
         >>> bool(fit.correlation > 0.999)
         True
     """
-    if not isinstance(record, Record):
-        raise ValueError(f"`record` must be a Record, got {type(record).__name__}")
-    if record.batch_shape != ():
-        raise ValueError(
-            f"`record` must be one record, not a suite of shape "
-            f"{record.batch_shape}: fit one record at a time (`.select(i)`)"
-        )
     for name, value in (("starts", starts), ("steps", steps)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             raise ValueError(f"`{name}` must be a positive integer, got {value!r}")
         if value < 1:
             raise ValueError(f"`{name}` must be a positive integer, got {value!r}")
-    n = int(record.length)
-    dt = float(record.dt)
-    samples = np.asarray(record.samples, dtype=np.float64)[:n]
-    if n < _MIN_SAMPLES or (n - 1) * dt < _MIN_DURATION:
-        raise ValueError(
-            f"`record` is too short to fit a pulse: {n} samples over "
-            f"{(n - 1) * dt:g} s (need >= {_MIN_SAMPLES} samples and "
-            f">= {_MIN_DURATION:g} s)"
-        )
-    if not np.any(samples):
-        raise ValueError("`record` is all zeros: there is no pulse to fit")
+    samples, dt = _checked(record, "fit", _MIN_SAMPLES, _MIN_DURATION)
+    n = samples.size
     u = _velocity(samples, dt)
     v = _detrended(u)  # for the starting points only
     peak = int(np.argmax(np.abs(v)))
     scale = float(np.abs(v[peak]))
-    if not scale > 0.0:
-        raise ValueError("`record` has zero velocity: there is no pulse to fit")
 
     stride = max(1, int(_COARSE_DT / dt + 1e-9))
     fine, coarse = _samples(u, dt, 1), _samples(u, dt, stride)
@@ -277,13 +295,97 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
     )
 
     amplitude, f, gamma, nu, t0 = (float(x) for x in _unpack(np.asarray(theta), scale))
+    # A fit at the bound gamma -> 1 rounds to 1.0, which `MPPulse` refuses.
+    gamma = max(gamma, math.nextafter(1.0, 2.0))
     nu = math.degrees(nu)
     if amplitude < 0.0:  # -A cos(x + nu) = A cos(x + nu + 180 deg)
         amplitude, nu = -amplitude, nu + 180.0
-    nu %= 360.0
-    pulse = MPPulse(amplitude, f, gamma, nu, t0=t0)
-    p = np.asarray(pulse.velocity(jnp.asarray(dt * np.arange(n))))
-    v = _detrended(u - p) + p  # u less the line fitted jointly with the pulse
+    duration = (n - 1) * dt
+    if not 1.0 / f <= duration:
+        raise ValueError(
+            f"`record` lasts {duration:g} s, less than the period 1/f_p = "
+            f"{1.0 / f:.3g} s of the pulse fitted to it: the record does not hold "
+            "a whole cycle of its pulse, so the pulse is not determined; fit a "
+            "longer record"
+        )
+    return _scored(u, dt, MPPulse(amplitude, f, gamma, nu % 360.0, t0=t0))
+
+
+def score_pulse(record: Record, pulse: MPPulse) -> PulseFit:
+    """How well a given pulse matches a record's velocity, as `fit_pulse`
+    measures its fits.
+
+    With u_k the record's trapezoid-rule velocity (m/s) at t_k = k dt and
+    p_k = p(t_k) the pulse's velocity (m/s), the record's velocity is
+    v_k = u_k - c0 - c1 t_k with c0 + c1 t the least-squares line fitted to
+    u - p (the baseline `fit_pulse` fits jointly with the pulse), and
+
+        correlation  = sum(v p) / sqrt(sum(v^2) sum(p^2))
+        energy_share = max(0, 1 - sum((v - p)^2) / sum(v^2))
+
+    The pulse's t0 is in s from the record's first sample. A pulse that
+    misses the record (p = 0 at every sample) has correlation 0.
+
+    Args:
+        record: One accelerogram (not a suite), finite, not all zeros (m/s^2).
+        pulse: One `MPPulse` (no batch axes).
+
+    Returns:
+        A `PulseFit` holding `pulse`, its correlation and its energy share.
+
+    Raises:
+        ValueError: if `record` is not a single finite `Record` or is all
+            zeros, or if `pulse` is not a single `MPPulse`.
+
+    Examples:
+        >>> import numpy as np, jaxrock as jr
+        >>> pulse = jr.MPPulse(0.8, 0.6, 2.0, 60.0, t0=5.0)
+        >>> t = np.arange(0.0, 12.0, 0.005)
+        >>> rec = jr.Record(np.asarray(pulse.acceleration(t)), 0.005)
+        >>> round(float(jr.score_pulse(rec, pulse).correlation), 6)
+        1.0
+        >>> reversed_pulse = jr.MPPulse(0.8, 0.6, 2.0, 240.0, t0=5.0)
+        >>> round(float(jr.score_pulse(rec, reversed_pulse).correlation), 3)
+        -1.0
+    """
+    samples, dt = _checked(record, "score")
+    if not isinstance(pulse, MPPulse):
+        raise ValueError(f"`pulse` must be an MPPulse, got {type(pulse).__name__}")
+    if pulse.batch_shape != ():
+        raise ValueError(
+            f"`pulse` must be one pulse, not a batch of shape {pulse.batch_shape}"
+        )
+    return _scored(_velocity(samples, dt), dt, pulse)
+
+
+def _histories(record: Record, pulse: MPPulse) -> dict[str, np.ndarray]:
+    """The record's and the pulse's acceleration (m/s^2), velocity (m/s) and
+    displacement (m) at the record's sample times `t` (s): the record's
+    velocity as `score_pulse` corrects it, the displacements integrated from
+    zero with the trapezoid rule."""
+    samples, dt = _checked(record, "plot")
+    v, p = _corrected(_velocity(samples, dt), dt, pulse)
+    t = dt * np.arange(samples.size)
+    return dict(
+        t=t,
+        record_acceleration=samples,
+        pulse_acceleration=np.asarray(pulse.acceleration(jnp.asarray(t))),
+        record_velocity=v,
+        pulse_velocity=p,
+        record_displacement=_velocity(v, dt),
+        pulse_displacement=_velocity(p, dt),
+    )
+
+
+def _corrected(u: np.ndarray, dt: float, pulse: MPPulse):
+    """The velocity samples `u` (m/s) less the least-squares line fitted to
+    u - p, and the pulse's velocity p (m/s) at the same times."""
+    p = np.asarray(pulse.velocity(jnp.asarray(dt * np.arange(u.size))))
+    return _detrended(u - p) + p, p
+
+
+def _scored(u: np.ndarray, dt: float, pulse: MPPulse) -> PulseFit:
+    v, p = _corrected(u, dt, pulse)
     energy = float(np.sum(v * v))
     norm = math.sqrt(energy * float(np.sum(p * p)))
     correlation = float(np.sum(v * p)) / norm if norm > 0.0 else 0.0

@@ -316,6 +316,9 @@ class _Still(AbstractGroundMotion):
     def acceleration(self, t):
         return jnp.zeros_like(t)
 
+    def acceleration_bound(self, t0, t1):
+        return jnp.zeros_like(t0)
+
     @property
     def end_time(self):
         return jnp.asarray(0.0)

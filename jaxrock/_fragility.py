@@ -10,13 +10,20 @@ from jax.scipy.stats import norm
 
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
+from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import GRAVITY, grid_axis, positive
+from ._misc import GRAVITY, grid_axis, positive, unbatched
 from ._model import check_base_and_motion
 from ._record import Record
 from ._results import Outcome, Status
 
 MEASURES = ("pga", "pgv", "pga_ratio")
+# Each measure's meaning and unit.
+_IM_ATTRS = {
+    "pga": {"long_name": "peak ground acceleration", "units": "m/s^2"},
+    "pgv": {"long_name": "peak ground velocity", "units": "m/s"},
+    "pga_ratio": {"long_name": "PGA / (g tan alpha)", "units": "1"},
+}
 
 
 def _peaks(motion: AbstractGroundMotion, samples: int = 20001):
@@ -128,6 +135,14 @@ class Fragility(eqx.Module):
             units of `im`; NaN when every or no analysis overturned.
         beta_overturning: the fit's standard deviation of ln IM (-); NaN
             likewise.
+        slenderness: the block's lambda = h / b (-).
+        size: the block's half-diagonal r (m).
+        base: a description of the base.
+        motion: a description of the motions (scaled).
+        seconds: the wall time of the analyses (s).
+        scales: the amplitude factors (-); None for motions as given.
+        coordinates: the motions' batch axes and the parameters of the base
+            and the motions (before scaling) along them (`Coordinates`).
         motion_index: the motion of the ensemble (before scaling) of each row.
         motion_names: the records' names of a suite; None otherwise.
 
@@ -151,6 +166,13 @@ class Fragility(eqx.Module):
     beta_rocking: float
     median_overturning: float
     beta_overturning: float
+    slenderness: float
+    size: float
+    base: str
+    motion: str
+    seconds: float
+    scales: np.ndarray | None
+    coordinates: Coordinates
     # The motion (before scaling) of each row, and the records' names.
     motion_index: np.ndarray | None = None
     motion_names: tuple | None = None
@@ -160,6 +182,63 @@ class Fragility(eqx.Module):
         median = getattr(self, f"median_{which}")
         beta = getattr(self, f"beta_{which}")
         return np.asarray(norm.cdf(np.log(np.asarray(im) / median) / beta))
+
+    def to_xarray(self):
+        """The analyses as an `xarray.Dataset` over the scales and the motions.
+
+        Dimensions: "scale" (the amplitude factors, -) when `scales` were
+        given, then the motions' batch axes ("record" for a suite of records,
+        "motion" for a batch of pulses). Coordinates: the scales, the
+        parameters of the base and of the motions before scaling (e.g. the
+        records' names as `record`, a batch of pulses' `amplitude` in m/s),
+        with their units in `attrs`, and the block (0-d `slenderness`, -, and
+        `size`, m). Data variables: `im` (in the units of `measure`),
+        `rocked`, `overturned` and `status` per analysis, and the fits
+        (`median_rocking` and `median_overturning` in the units of `im`,
+        `beta_rocking` and `beta_overturning`, -). Attributes: `measure`,
+        `base`, `motion` and `seconds` (s).
+
+        Needs xarray (`pip install "jaxrock[xarray]"`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+            >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
+            ...                     scales=[0.2, 0.4, 0.6, 0.8, 1.0, 1.2])
+            >>> ds = frag.to_xarray()
+            >>> ds.im.dims, bool(ds.overturned.sel(scale=1.0))
+            (('scale',), True)
+        """
+        dims, coords = self.coordinates.dims, dict(self.coordinates.coords)
+        if self.scales is not None:
+            dims = ("scale",) + dims
+            coords["scale"] = (("scale",), self.scales, {"units": "1"})
+        for k in ("slenderness", "size"):
+            coords[k] = ((), getattr(self, k), ATTRS[k])
+        shape = self.coordinates.sizes()
+        shape = (-1,) + shape if self.scales is not None else shape
+        im = _IM_ATTRS[self.measure]
+        fit = {}
+        for which in ("rocking", "overturning"):
+            fit[f"median_{which}"] = ((), getattr(self, f"median_{which}"), im)
+            fit[f"beta_{which}"] = ((), getattr(self, f"beta_{which}"), {"units": "1"})
+        rows = {
+            "im": (dims, self.im.reshape(shape), im),
+            "rocked": (dims, self.rocked.reshape(shape), {"long_name": "rocked"}),
+            "overturned": (
+                dims,
+                self.overturned.reshape(shape),
+                {"long_name": "overturned"},
+            ),
+            "status": (dims, self.status.reshape(shape)),
+        }
+        attrs = dict(
+            measure=self.measure,
+            base=self.base,
+            motion=self.motion,
+            seconds=self.seconds,
+        )
+        return dataset(rows | fit, coords, attrs)
 
 
 def fragility(
@@ -192,15 +271,17 @@ def fragility(
         scales: amplitude factors (> 0) applied to every motion; None: the
             motions as given.
         measure: "pga", "pgv" or "pga_ratio".
-        **map_options: passed to `behavior_map` (rtol, duration, ...).
+        **map_options: passed to `behavior_map` (rtol, duration, store,
+            executor, ...).
 
     Returns:
         A `Fragility`: one row per analysis (scales first, then motions),
         with `motion_index` the motion each row scales and the fits.
 
     Raises:
-        ValueError: an unknown measure, `scales` not all > 0, a single
-            unscaled motion, or a motion that does not move the ground.
+        ValueError: an unknown measure, a batch of bases, `scales` not all
+            > 0, a single unscaled motion, or a motion that does not move the
+            ground.
 
     Examples:
         >>> import jaxrock as jr
@@ -211,10 +292,13 @@ def fragility(
     if measure not in MEASURES:
         raise ValueError(f"`measure` must be one of {MEASURES}, got {measure!r}")
     check_base_and_motion(base, motions)
+    unbatched("base", base, "fragility")
     members = int(np.prod(motions.batch_shape))
     names = motions.names()
+    labels = coordinates(base, motions)
     if scales is not None:
-        motions = motions.scaled(grid_axis("scales", scales))
+        scales = grid_axis("scales", scales)
+        motions = motions.scaled(scales)
     elif motions.batch_shape == ():
         raise ValueError(
             "`motions` must be an ensemble (a suite of records or a batched pulse), "
@@ -247,6 +331,13 @@ def fragility(
         beta_rocking=beta_r,
         median_overturning=med_o,
         beta_overturning=beta_o,
+        slenderness=float(slenderness),
+        size=float(size),
+        base=bm.base,
+        motion=bm.motion,
+        seconds=bm.seconds,
+        scales=scales,
+        coordinates=labels,
         motion_index=np.arange(outcome.size) % members,
         motion_names=names,
     )

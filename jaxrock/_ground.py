@@ -46,6 +46,13 @@ class AbstractGroundMotion(AbstractChecked):
     def end_time(self) -> Float[Array, ""]:
         """When the excitation ends (s)."""
 
+    @abc.abstractmethod
+    def acceleration_bound(
+        self, t0: Float[Array, ""], t1: Float[Array, ""]
+    ) -> Float[Array, ""]:
+        """A bound of |x_g''| over [t0, t1] (m/s^2; t1 >= t0), tight when the
+        interval is short, inf when none is cheap (the rest rule reads it)."""
+
     def next_kink(
         self, t: Float[Array, ""], quiet_below=None
     ) -> Float[Array, ""] | None:
@@ -131,11 +138,11 @@ class MPPulse(AbstractGroundMotion):
         (2.0, 0.5)
     """
 
-    amplitude: Float[Array, "..."] = parameter("amplitude")
-    frequency: Float[Array, "..."] = parameter("frequency")
-    gamma: Float[Array, "..."] = parameter("gamma")
-    phase: Float[Array, "..."] = parameter("phase")
-    t0: Float[Array, "..."] = parameter("t0")
+    amplitude: Float[Array, "..."] = parameter("amplitude", "m/s")
+    frequency: Float[Array, "..."] = parameter("frequency", "Hz")
+    gamma: Float[Array, "..."] = parameter("gamma", "1")
+    phase: Float[Array, "..."] = parameter("phase", "degree")
+    t0: Float[Array, "..."] = parameter("t0", "s")
 
     def __init__(self, amplitude, frequency, gamma, phase, t0=None):
         self.amplitude = amplitude
@@ -194,6 +201,13 @@ class MPPulse(AbstractGroundMotion):
             sin_e * cos_p + self.gamma * sin_p * (1.0 + cos_e)
         )
         return jnp.where(jnp.abs(t - self.t0) <= self.half_duration, a, 0.0)
+
+    def acceleration_bound(self, t0, t1):
+        # The jerk is at most |A| pi f_p / gamma * 2 pi f_p (1/gamma + 2 + 2 gamma).
+        w = 2.0 * jnp.pi * self.frequency
+        jerk = jnp.abs(self.amplitude) * 0.5 * w * w / self.gamma
+        jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
+        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
     def scaled(self, factor) -> "MPPulse":
         factor = scale_factors(factor)
@@ -255,8 +269,8 @@ class SinePulse(AbstractGroundMotion):
         (0.5, 3.0)
     """
 
-    amplitude: Float[Array, "..."] = parameter("amplitude")
-    frequency: Float[Array, "..."] = parameter("frequency")
+    amplitude: Float[Array, "..."] = parameter("amplitude", "m/s^2")
+    frequency: Float[Array, "..."] = parameter("frequency", "Hz")
 
     def constraints(self):
         return [
@@ -267,6 +281,10 @@ class SinePulse(AbstractGroundMotion):
     def acceleration(self, t):
         a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
         return jnp.where((t >= 0) & (t <= self.end_time), a, 0.0)
+
+    def acceleration_bound(self, t0, t1):
+        jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
+        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
     def scaled(self, factor) -> "SinePulse":
         factor = scale_factors(factor)

@@ -160,9 +160,9 @@ class LinearIsolator(AbstractIsolator):
         0.987
     """
 
-    period: Float[Array, "..."] = parameter("period")
-    damping: Float[Array, "..."] = parameter("damping")
-    mass_ratio: Float[Array, "..."] = parameter("mass_ratio")
+    period: Float[Array, "..."] = parameter("period", "s")
+    damping: Float[Array, "..."] = parameter("damping", "1")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
     n_states: ClassVar[int] = 2
 
     def constraints(self):
@@ -230,15 +230,15 @@ class AbstractFrictionPendulum(AbstractIsolator):
         (True, 2.0)
     """
 
-    friction: Float[Array, "..."] = parameter("friction")
-    radius: Float[Array, "..."] = parameter("radius")
-    mass_ratio: Float[Array, "..."] = parameter("mass_ratio")
+    friction: Float[Array, "..."] = parameter("friction", "1")
+    radius: Float[Array, "..."] = parameter("radius", "m")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
     yield_displacement: Float[Array, "..."] = parameter(
-        "yield_displacement", default=5e-4
+        "yield_displacement", "m", default=5e-4
     )
-    A: Float[Array, "..."] = parameter("A", default=1.0)
-    gamma: Float[Array, "..."] = parameter("gamma", default=0.9)
-    beta: Float[Array, "..."] = parameter("beta", default=0.1)
+    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
     eta: eqx.AbstractClassVar[float]
     hysteretic_state: ClassVar[bool] = True
 

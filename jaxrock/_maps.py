@@ -5,7 +5,7 @@ import json
 import os
 import time
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 
 import equinox as eqx
 import jax
@@ -14,10 +14,12 @@ import numpy as np
 
 from ._block import Block
 from ._dynamics import Phase
+from ._executor import check_executor, run_tasks
 from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
+from ._labeled import ATTRS, Coordinates, coordinates, dataset, read, suffix, write
 from ._misc import as_float, broadcast_batch_shape, grid_axis, is_count, positive
 from ._model import Carry, check_base_and_motion, initial_carry, response
 from ._results import (
@@ -272,6 +274,9 @@ class BehaviorMap(eqx.Module):
             slowest one).
         motion_names: the records' names of a map under a suite of records
             (its leading motion axis); None otherwise.
+        coordinates: the names of the leading axes and the parameters of the
+            base and the motion along them (`Coordinates`); None for a map
+            read from a file that does not hold them.
 
     Examples:
         >>> import jaxrock as jr
@@ -301,15 +306,22 @@ class BehaviorMap(eqx.Module):
     lane_efficiency: float = float("nan")
     # The records' names of a map under a suite (its leading motion axis).
     motion_names: tuple | None = None
+    coordinates: Coordinates | None = None
 
     def select(self, index: int) -> "BehaviorMap":
         """The map at `index` of its leading axis (a suite's record, an
-        ensemble's isolator or pulse), labelled with the record's name."""
+        ensemble's isolator or pulse), labelled with the record's name; its
+        `coordinates` hold that member's parameters, and a map under a suite
+        keeps the records' names unless the axis is the suite's."""
         if self.outcome.ndim < 3:
             raise ValueError("the map has no leading batch axis to select from")
         fields = {k: getattr(self, k)[index] for k in _FIELDS}
-        names = self.motion_names
-        one = names is not None and len(names) == self.outcome.shape[0]
+        names, c = self.motion_names, self._coordinates()
+        if self.coordinates is None:  # (read from a file without them) a guess
+            on_records = names is not None and len(names) == self.outcome.shape[0]
+        else:
+            on_records = c.dims[0].startswith("record")
+        one = on_records and names is not None and len(names) == self.outcome.shape[0]
         return BehaviorMap(
             slenderness=self.slenderness,
             size=self.size,
@@ -318,7 +330,12 @@ class BehaviorMap(eqx.Module):
             motion=names[index] if one else f"{self.motion} [{index}]",
             seconds=self.seconds,
             lane_efficiency=self.lane_efficiency,
+            motion_names=None if on_records else names,
+            coordinates=c.select(index),
         )
+
+    def _coordinates(self) -> Coordinates:
+        return self.coordinates or Coordinates.unlabeled(self.outcome.ndim - 2)
 
     def counts(self) -> dict[str, int]:
         """The number of cells per outcome, and of cells that did not converge.
@@ -365,15 +382,114 @@ class BehaviorMap(eqx.Module):
             text += f", {c['not_converged']} NOT CONVERGED (see status)"
         return text + f" [{self.motion}; {self.base}]"
 
-    def save(self, path) -> None:
-        """Write the map to a compressed NumPy `.npz` file.
+    def to_xarray(self):
+        """The map as an `xarray.Dataset` with named dimensions.
 
-        The file holds every array and the metadata (base, motion, seconds,
-        lane_efficiency, motion_names); `BehaviorMap.load` reads it back.
+        Dimensions: the leading (batch) axes of `coordinates` ("base", then
+        "motion" for a batch of pulses or "record" for a suite of records),
+        then "slenderness" and "size". Coordinates: the grid (slenderness
+        lambda = h / b, -; size r, m) and the parameters of the base and the
+        motion along the batch axes, with their SI units in `attrs` (e.g.
+        `period` (s) of a batch of `LinearIsolator`, `amplitude` (m/s) of a
+        batch of pulses, `record` the records' names), 0-d where one value. A
+        1-D coordinate of distinct values is an index: `ds.sel(period=2.0)`.
+        Data variables: the per-cell fields, their meanings and units in
+        `attrs` (`outcome` and `status` list their codes as `flag_values`
+        and `flag_meanings`). Attributes: `base` and `motion` (descriptions),
+        `seconds` (s), `lane_efficiency` and, under a suite, `motion_names`.
+
+        Needs xarray (`pip install "jaxrock[xarray]"`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> ds = bm.to_xarray()
+            >>> ds.outcome.dims, int(ds.outcome.sel(slenderness=6.0, size=0.5))
+            (('slenderness', 'size'), 2)
+            >>> float(ds.frequency), ds.frequency.attrs["units"]  # the pulse's f_p
+            (0.33, 'Hz')
+        """
+        c = self._coordinates()
+        dims = c.dims + ("slenderness", "size")
+        coords = {
+            k: ((k,), getattr(self, k), ATTRS[k]) for k in ("slenderness", "size")
+        }
+        return dataset(
+            {k: (dims, getattr(self, k)) for k in _FIELDS},
+            coords | c.coords,
+            self._attributes(),
+        )
+
+    def _attributes(self) -> dict:
+        """The metadata: base, motion, seconds, lane_efficiency, motion_names
+        (when a suite's, None as "")."""
+        out = dict(
+            base=self.base,
+            motion=self.motion,
+            seconds=float(self.seconds),
+            lane_efficiency=float(self.lane_efficiency),
+        )
+        if self.motion_names is not None:
+            out["motion_names"] = ["" if n is None else n for n in self.motion_names]
+        return out
+
+    @classmethod
+    def from_xarray(cls, ds) -> "BehaviorMap":
+        """The map of a Dataset of `BehaviorMap.to_xarray` (or read from its
+        file).
+
+        Raises:
+            ValueError: a Dataset without the map's variables or attributes
+                (base, motion, seconds), or whose arrays disagree (see
+                `load`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
+            ...                      jr.near_fault_pulse("Northridge JFA/SN"))
+            >>> jr.BehaviorMap.from_xarray(bm.to_xarray()).counts() == bm.counts()
+            True
+        """
+        names = ("slenderness", "size") + _FIELDS
+        missing = [k for k in names if k not in ds.variables]
+        missing += [k for k in ("base", "motion", "seconds") if k not in ds.attrs]
+        if missing:
+            raise ValueError(f"missing {', '.join(missing)}")
+        arrays = {k: ds[k].values for k in names}
+        _check_map_arrays(arrays)
+        dims = ds["outcome"].dims[:-2]
+        suite = ds.attrs.get("motion_names")
+        return cls(
+            **arrays,
+            base=str(ds.attrs["base"]),
+            motion=str(ds.attrs["motion"]),
+            seconds=float(ds.attrs["seconds"]),
+            lane_efficiency=float(ds.attrs.get("lane_efficiency", np.nan)),
+            motion_names=None
+            if suite is None
+            else tuple(str(n) or None for n in np.atleast_1d(suite)),
+            coordinates=Coordinates.from_dataset(ds, dims, ("slenderness", "size")),
+        )
+
+    def save(self, path) -> None:
+        """Write the map to a file, in the format its suffix names.
+
+        `.npz`: a compressed NumPy file (every array, and the metadata as
+        JSON); `.nc`: NetCDF-4 (by h5netcdf); `.zarr`: a Zarr store (a
+        folder, replaced if it exists). NetCDF and Zarr hold the Dataset of
+        `to_xarray` and need `pip install "jaxrock[xarray]"`. Every format
+        holds the arrays, the batch axes' coordinates and the metadata (base,
+        motion, seconds, lane_efficiency, motion_names); `BehaviorMap.load`
+        reads them back.
 
         Args:
-            path: the file's path (str or path-like); NumPy appends `.npz` to
-                a name without it.
+            path: the file's path (str or path-like), ending in `.npz`, `.nc`
+                or `.zarr`; NumPy appends `.npz` to a name without a suffix.
+
+        Raises:
+            ValueError: any other suffix, or a `.zarr` path that exists and is
+                not a Zarr store.
 
         Examples:
             >>> import os, tempfile, jaxrock as jr
@@ -384,33 +500,35 @@ class BehaviorMap(eqx.Module):
             >>> jr.BehaviorMap.load(path).counts() == bm.counts()
             True
         """
-        meta = json.dumps(
-            {
-                "base": self.base,
-                "motion": self.motion,
-                "seconds": self.seconds,
-                "lane_efficiency": self.lane_efficiency,
-                "motion_names": self.motion_names,
-            }
-        )
+        kind = suffix(path)
+        if kind != ".npz":
+            write(self.to_xarray(), path, kind)
+            return
+        meta = self._attributes() | {
+            "motion_names": self.motion_names,
+            "coordinates": None
+            if self.coordinates is None
+            else self.coordinates.to_json(),
+        }
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
-        np.savez_compressed(path, metadata=np.array(meta), **arrays)
+        np.savez_compressed(path, metadata=np.array(json.dumps(meta)), **arrays)
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
-        """Read a map written by `BehaviorMap.save`.
+        """Read a map written by `BehaviorMap.save` (`.npz`, `.nc` or `.zarr`).
 
         Args:
-            path: the `.npz` file's path (str or path-like).
+            path: the file's path (str or path-like).
 
         Returns:
-            The `BehaviorMap`, with the arrays and metadata saved.
+            The `BehaviorMap`, with the arrays, coordinates and metadata saved.
 
         Raises:
-            ValueError: the file is not such a map (the message names it):
-                missing, unreadable or truncated, without some arrays or
-                metadata, with arrays whose shapes disagree, or with outcome or
-                status codes out of range.
+            ValueError: a suffix other than `.npz`, `.nc` and `.zarr`, or a
+                file that is not such a map (the message names it): missing,
+                unreadable or truncated, without some arrays or metadata, with
+                arrays whose shapes disagree, or with outcome or status codes
+                out of range.
 
         Examples:
             >>> import os, tempfile, jaxrock as jr
@@ -421,34 +539,42 @@ class BehaviorMap(eqx.Module):
             >>> bm.outcome.shape, bm.base
             ((2, 2), 'fixed base')
         """
-        names = ("slenderness", "size") + _FIELDS
+        kind = suffix(path)
         try:
-            with np.load(path, allow_pickle=False) as data:
-                missing = [k for k in ("metadata",) + names if k not in data.files]
-                if missing:
-                    raise ValueError(f"missing {', '.join(missing)}")
-                data_meta = data["metadata"]
-                meta = json.loads(str(data_meta))
-                arrays = {k: data[k] for k in names}
-            if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(
-                meta
-            ):
-                raise ValueError("its metadata lacks base, motion or seconds")
-            meta = {
-                k: meta[k]
-                for k in ("base", "motion", "seconds", "lane_efficiency")
-                if k in meta
-            }
-            names = json.loads(str(data_meta)).get("motion_names")
-            if isinstance(names, list):
-                meta["motion_names"] = tuple(names)
-            _check_map_arrays(arrays)
+            if kind != ".npz":
+                return cls.from_xarray(read(path, kind))
+            return cls._load_npz(path)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
             raise ValueError(
                 f"{str(path)!r} is not a behavior map written by "
                 f"BehaviorMap.save: {err}"
             ) from None
-        return cls(**arrays, **meta)
+
+    @classmethod
+    def _load_npz(cls, path) -> "BehaviorMap":
+        names = ("slenderness", "size") + _FIELDS
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in ("metadata",) + names if k not in data.files]
+            if missing:
+                raise ValueError(f"missing {', '.join(missing)}")
+            meta = json.loads(str(data["metadata"]))
+            arrays = {k: data[k] for k in names}
+        if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(meta):
+            raise ValueError("its metadata lacks base, motion or seconds")
+        _check_map_arrays(arrays)
+        out = {
+            k: meta[k]
+            for k in ("base", "motion", "seconds", "lane_efficiency")
+            if k in meta
+        }
+        if isinstance(meta.get("motion_names"), list):
+            out["motion_names"] = tuple(meta["motion_names"])
+        if isinstance(meta.get("coordinates"), dict):
+            c = Coordinates.from_json(meta["coordinates"])
+            if len(c.dims) != arrays["outcome"].ndim - 2:
+                raise ValueError(f"coordinates name {len(c.dims)} leading axes")
+            out["coordinates"] = c
+        return cls(**arrays, **out)
 
 
 def _check_map_arrays(arrays: dict) -> None:
@@ -618,66 +744,132 @@ class _Grid:
         )
 
 
+def _numpy(tree):
+    """The pytree with its JAX arrays as NumPy arrays (picklable: a task's)."""
+    return jax.tree_util.tree_map(
+        lambda x: np.asarray(x) if isinstance(x, jax.Array) else x, tree
+    )
+
+
+def _device_args(task, device) -> tuple:
+    """The arguments of `_map_chunk` but the lane width, from a task
+    (`_ChunkRunner.task`): on `device`, but the options (uncommitted)."""
+    *head, opts, count, pilot = task
+    opts = jax.tree_util.tree_map(
+        lambda x: jnp.asarray(x) if isinstance(x, np.ndarray) else x, opts
+    )
+    return (
+        *jax.device_put(tuple(head), device),
+        opts,
+        *jax.device_put((count, pilot), device),
+    )
+
+
+def _compute_chunk(task, device=None) -> dict:
+    """One chunk of a map: the task `behavior_map` gives an executor.
+
+    `task` holds the NumPy arguments of `_map_chunk` but the lane width
+    (`_ChunkRunner.task`); they go to `device` (default: the first local
+    device). Returns NumPy arrays: for a chunk of cells its `_FIELDS`, for a
+    chunk of pilots the leaves of their carries ("carries", a list), each for
+    the chunk's cells only (not its padding); and the lane-steps executed and
+    those that advanced an analysis ("executed", "useful").
+    """
+    args = _device_args(task, device or jax.local_devices()[0])
+    responses, carries, executed, useful = jax.device_get(_map_chunk(*args, LANE_WIDTH))
+    _COMPILED.add(_signature(args))
+    count, pilot = int(task[-2]), bool(task[-1])
+    if pilot:
+        out = {"carries": [x[:count] for x in jax.tree_util.tree_leaves(carries)]}
+    else:
+        out = {f: np.asarray(getattr(responses, f))[:count] for f in _FIELDS}
+    return out | {"executed": np.asarray(executed), "useful": np.asarray(useful)}
+
+
 class _ChunkRunner:
-    """Runs chunks of cells through `_map_chunk` on the local devices.
+    """Runs chunks of cells through `_map_chunk` (`_compute_chunk`), on the
+    local devices or as the tasks of an executor.
 
     A chunk's cells are padded to `padded` (the last cell repeated, never
-    analysed) so that maps of other sizes reuse a handful of compiles. Chunks
-    go round-robin to the local devices (GPUs, or several CPU devices with
-    XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread per
-    CPU core: XLA releases the GIL, so chunks run at once.
+    analysed) so that maps of other sizes reuse a handful of compiles. Without
+    an executor, chunks go round-robin to the local devices (GPUs, or several
+    CPU devices with XLA_FLAGS=--xla_force_host_platform_device_count=N), from
+    one thread per CPU core: XLA releases the GIL, so chunks run at once.
     """
 
-    def __init__(self, grid: _Grid, duration, opts, padded: int):
-        self.grid, self.opts, self.padded = grid, opts, padded
+    def __init__(self, grid: _Grid, duration, opts, padded: int, executor=None):
+        self.grid, self.padded, self.executor = grid, padded, executor
+        self.motion, self.duration, self.opts = _numpy(
+            (grid.motion.unlabeled(), duration, opts)
+        )
         self.devices = jax.local_devices()
-        self.on_device = [
-            jax.device_put((grid.motion.unlabeled(), duration), d) for d in self.devices
-        ]
 
-    def args(self, k, index, inputs, shared, pilot):
-        """The arguments of `_map_chunk` for chunk k, the cells `index` of
-        `inputs` and `shared`, on the chunk's device."""
-        d, count = k % len(self.devices), index.size
+    def task(self, index, inputs, shared, pilot) -> tuple:
+        """The arguments of `_map_chunk` but the lane width, as NumPy, for the
+        cells `index` of `inputs` and `shared`: a task of `_compute_chunk`."""
+        count = index.size
         take = np.pad(index, (0, self.padded - count), mode="edge")
 
         def part(tree):
-            tree = jax.tree_util.tree_map(lambda x: np.asarray(x)[take], tree)
-            return jax.device_put(tree, self.devices[d])
+            return jax.tree_util.tree_map(lambda x: np.asarray(x)[take], tree)
 
-        d_motion, d_duration = self.on_device[d]
         lam_k, r_k, base_k, motion_k = inputs
-        index = part(motion_k) if self.grid.suite else None
-        m = d_motion if self.grid.motion.shared_by_cells else part(motion_k)
-        args = (part(lam_k), part(r_k), part(base_k), m, index)
-        args += (part(shared), d_duration)
-        flags = jax.device_put((np.asarray(count), np.asarray(pilot)), self.devices[d])
-        return args + (self.opts, flags[0], flags[1])
-
-    def compute(self, k, index, inputs, shared, pilot):
-        """Chunk k: its responses and carries (NumPy), executed and useful steps."""
-        args, count = self.args(k, index, inputs, shared, pilot), index.size
-        responses, carries, executed, useful = jax.device_get(
-            _map_chunk(*args, LANE_WIDTH)
+        suite_index = part(motion_k) if self.grid.suite else None
+        motion = self.motion if self.grid.motion.shared_by_cells else part(motion_k)
+        return (
+            part(lam_k),
+            part(r_k),
+            part(base_k),
+            motion,
+            suite_index,
+            part(shared),
+            self.duration,
+            self.opts,
+            np.asarray(count),
+            np.asarray(pilot),
         )
-        _COMPILED.add(_signature(args))
-        trim = lambda tree: jax.tree_util.tree_map(lambda x: x[:count], tree)  # noqa: E731
-        return trim(responses), trim(carries), int(executed), int(useful)
 
-    def run_all(self, ks, fn, pool, probe, bar=None):
-        """fn(k) for every k, in threads; unless the loop is compiled already
-        (`probe`: the arguments of a chunk like these), the first runs alone
-        (it compiles, the others then reuse the compile)."""
-        out = {}
-        if ks and _signature(self.args(*probe)) not in _COMPILED:
-            out[ks[0]] = fn(ks[0])
+    def device(self, k):
+        """Chunk k's local device (round-robin)."""
+        return self.devices[k % len(self.devices)]
+
+    def run(self, jobs, inputs, shared, pilot, done=None, bar=None) -> dict:
+        """The chunks `jobs` ({k: its cells}) of pass 1 (`pilot`) or 2 of the
+        cells `inputs` and `shared`: {k: `_compute_chunk`'s result}, and
+        done(k, result) as each ends; the progress bar `bar` counts them.
+
+        On the executor, if any (`run_tasks`); else round-robin over the local
+        devices from one thread per CPU core, and unless the loop is compiled
+        already, the first chunk runs alone (it compiles, the others then
+        reuse the compile).
+        """
+
+        def task(k):
+            return self.task(jobs[k], inputs, shared, pilot)
+
+        if self.executor is not None:
+            what = "pilot chunk" if pilot else "chunk"
+            tasks = {k: task(k) for k in jobs}
+            return run_tasks(self.executor, _compute_chunk, tasks, what, done, bar)
+
+        def compute(k):
+            out = _compute_chunk(task(k), self.device(k))
+            if done is not None:
+                done(k, out)
+            return out
+
+        ks, out = list(jobs), {}
+        probe = ks and _signature(_device_args(task(ks[0]), self.device(ks[0])))
+        if ks and probe not in _COMPILED:
+            out[ks[0]] = compute(ks[0])
             if bar is not None:
                 bar.update(1)
         rest = ks[len(out) :]
-        for k, result in zip(rest, pool.map(fn, rest)):
-            out[k] = result
-            if bar is not None:
-                bar.update(1)
+        with ThreadPoolExecutor(max(len(self.devices), os.cpu_count() or 1)) as pool:
+            for k, result in zip(rest, pool.map(compute, rest)):
+                out[k] = result
+                if bar is not None:
+                    bar.update(1)
         return out
 
 
@@ -697,6 +889,7 @@ def behavior_map(
     rest_tolerance: float = REST_TOLERANCE,
     solver=None,
     store: str | os.PathLike | None = None,
+    executor: Executor | None = None,
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
@@ -718,12 +911,19 @@ def behavior_map(
     pulses or isolator parameters reuse the compile.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
-    only the missing chunks). Several processes (`jax.distributed`, one per
-    host) share a map through a `store` on a shared file system: process i
-    computes the chunks k with k % process_count == i and then reads the
-    others' chunks as they appear; every process returns the whole map.
+    only the missing chunks, dealt the cells as the first run dealt them).
+
+    `executor`, a `concurrent.futures.Executor` (a `ProcessPoolExecutor`, a
+    Dask cluster's `Client.get_executor()`, an `mpi4py.futures.MPIPoolExecutor`),
+    runs every chunk as one task instead of the local threads: the task
+    (`_compute_chunk`) takes and returns NumPy arrays. The pilots (the shared
+    phase, one chunk per `chunk_size` of them) run as tasks first, then the
+    chunks of cells; each result goes to the store as it arrives, and a task
+    that fails (after the executor's own retries) raises `RuntimeError` naming
+    its chunk. The map is the same to the bit as without an executor.
     """
     check_base_and_motion(base, motion)
+    check_executor(executor)
     lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
     if duration is None:
@@ -748,81 +948,56 @@ def behavior_map(
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
-    runner = _ChunkRunner(grid, duration, opts, padded)
-
-    processes, me = jax.process_count(), jax.process_index()
-    if processes > 1 and store is None:
-        raise ValueError(
-            f"this is process {me} of {processes} (jax.distributed): pass "
-            "`store=DIR` on a file system all processes share"
-        )
+    runner = _ChunkRunner(grid, duration, opts, padded, executor)
     if store is not None:
         key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
 
-    blank = grid.blank_carries()
-    pilot_chunks = [
-        np.arange(i, min(i + chunk, grid.pilots)) for i in range(0, grid.pilots, chunk)
-    ]
-    probe = (0, pilot_chunks[0], grid.pilot_inputs, blank, True)
-    mine = [k for k in range(chunks) if k % processes == me]
-
     t = time.perf_counter()
-    with ThreadPoolExecutor(max(len(runner.devices), os.cpu_count() or 1)) as pool:
-        useful = executed = 0
-        if store is None or not all(store.has(k) for k in mine):
-            # Pass 1: the pilots, from t = 0 to where their cells part ways.
-            done = runner.run_all(
-                list(range(len(pilot_chunks))),
-                lambda k: runner.compute(
-                    k, pilot_chunks[k], grid.pilot_inputs, blank, True
-                ),
-                pool,
-                probe,
-            )
-            carries = [done[k][1] for k in range(len(pilot_chunks))]
-            carries = jax.tree_util.tree_map(lambda *x: np.concatenate(x), *carries)
-            starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
-            useful = sum(d[3] for d in done.values())
-            executed = sum(d[2] for d in done.values())
-            # Cells by start time (the most work first), dealt to the chunks in
-            # turn: chunks of equal work, and short analyses fill each one's
-            # tail. Several processes deal in grid order (still balanced), which
-            # cannot depend on the last bits of their pilots' times.
-            order = np.arange(n)
-            if processes == 1:
-                order = np.argsort(starts.t, kind="stable")
+    results = {} if store is None else store.chunks(chunks)  # from an earlier run
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
 
-        def run_chunk(k):
-            """Pass 2, chunk k: its cells ("index"), their `_FIELDS` arrays, and
-            the lane-steps "executed" and "useful"."""
-            if store is not None:
-                if k % processes != me:  # another process's
-                    store.wait_for(k)
-                stored_chunk = store.read(k)  # from before an interruption
-                if stored_chunk is not None:
-                    return stored_chunk
-            index = order[k::chunks]
-            responses, _, executed, useful = runner.compute(
-                k, index, grid.cell_inputs, starts, False
-            )
-            out = {f: np.asarray(getattr(responses, f)) for f in _FIELDS}
-            out |= {"index": index, "executed": executed, "useful": useful}
+        bar = tqdm(
+            total=chunks, initial=len(results), desc="behavior map", unit="chunk"
+        )
+    useful = executed = 0
+    if len(results) < chunks:
+        # Pass 1: the pilots, from t = 0 to where their cells part ways.
+        blank = grid.blank_carries()
+        pilots = range(0, grid.pilots, chunk)
+        pilots = {
+            k: np.arange(i, min(i + chunk, grid.pilots)) for k, i in enumerate(pilots)
+        }
+        done = runner.run(pilots, grid.pilot_inputs, blank, True)
+        leaves = zip(*(done[k]["carries"] for k in range(len(done))))
+        carries = jax.tree_util.tree_unflatten(
+            jax.tree_util.tree_structure(blank), map(np.concatenate, leaves)
+        )
+        starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
+        useful = sum(int(d["useful"]) for d in done.values())
+        executed = sum(int(d["executed"]) for d in done.values())
+        # Cells by start time (the most work first), dealt to the chunks in
+        # turn: chunks of equal work, and short analyses fill each one's tail.
+        # A store keeps its first run's order: a rerun whose pilots differ in
+        # their last bits (other hardware) deals the same chunks.
+        order = np.argsort(starts.t, kind="stable")
+        if store is not None:
+            order = store.dealt(order)
+        cells = {k: order[k::chunks] for k in range(chunks) if k not in results}
+
+        def finished(k, out):
+            """Pass 2's chunk k: its cells ("index") join its results."""
+            out["index"] = cells[k]
             if store is not None:
                 store.write(k, out)
-            return out
 
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=chunks, desc="behavior map", unit="chunk")
-        # Other processes' chunks (read from the store) come last.
-        ks = sorted(range(chunks), key=lambda k: (k % processes != me, k))
-        results = list(runner.run_all(ks, run_chunk, pool, probe, bar).values())
-        if bar is not None:
-            bar.close()
+        results |= runner.run(cells, grid.cell_inputs, starts, False, finished, bar)
+    if bar is not None:
+        bar.close()
     seconds = time.perf_counter() - t
+    results = [results[k] for k in range(chunks)]
     return _assemble(grid, results, seconds, useful, executed)
 
 
@@ -831,8 +1006,8 @@ def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:
     index = np.concatenate([c["index"] for c in results])
     if not np.array_equal(np.sort(index), np.arange(grid.n)):
         raise RuntimeError(
-            "the chunks do not hold every cell exactly once (a store written by "
-            "processes that dealt the cells differently?)"
+            "the chunks do not hold every cell exactly once (a store whose "
+            "chunks were dealt differently?)"
         )
     cell_order = np.argsort(index)
     fields = {
@@ -850,4 +1025,5 @@ def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
         motion_names=grid.motion_names,
+        coordinates=coordinates(grid.base, grid.motion),
     )

@@ -56,10 +56,14 @@ def grid_axis(name: str, values) -> np.ndarray:
     return x.astype(float)
 
 
-def parameter(name: str, **kwargs):
+def parameter(name: str, unit: str | None = None, **kwargs):
     """A physical parameter's field: a float array leaf, refused (naming it)
-    unless real-valued."""
-    return eqx.field(converter=lambda x: real_number(name, x), **kwargs)
+    unless real-valued. `unit` (SI, "1" if dimensionless) marks the parameters
+    that label results (the coordinates of `to_xarray`)."""
+    metadata = {} if unit is None else {"unit": unit}
+    return eqx.field(
+        converter=lambda x: real_number(name, x), metadata=metadata, **kwargs
+    )
 
 
 class Constraint(NamedTuple):
@@ -93,6 +97,17 @@ def broadcast_batch_shape(module) -> tuple[int, ...]:
             f"the parameters of {type(module).__name__} must share one batch shape, "
             f"got shapes {leaves}"
         ) from None
+
+
+def unbatched(name: str, module, result: str) -> None:
+    """`ValueError` naming `name` if the module's parameters carry batch axes
+    (an analysis that gives one `result` per module)."""
+    shape = broadcast_batch_shape(module)
+    if shape:
+        raise ValueError(
+            f"`{name}` must be one {name} (parameters without batch axes), got a "
+            f"batch of shape {shape}: one {result} per {name}"
+        )
 
 
 def scale_factors(factor, name: str = "factor") -> np.ndarray:

@@ -25,6 +25,7 @@ from ._dynamics import (
     Args,
     Phase,
     absolute_base_acceleration,
+    base_acceleration_bound,
     impact,
     restitution,
     rests_at_impact,
@@ -335,12 +336,18 @@ def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
     )
 
 
-def _apply_jumps(ev: _Events, y, block, base, opts):
+def _apply_jumps(ev: _Events, t, y, block, base, motion, opts):
     """The impact map (with the rest rule) and the state's resets at uplift and
     rest. Returns the new state and whether rocking ends at the impact."""
     theta, theta_dot, base_state = y
     e, _ = restitution(block, base)
-    rest = rests_at_impact(block, e, theta_dot**2, opts.rest_tolerance)
+    rest = rests_at_impact(
+        block,
+        e,
+        theta_dot**2,
+        opts.rest_tolerance,
+        lambda window: base_acceleration_bound(t, window, base_state, base, motion),
+    )
     post_theta_dot, post_base = impact(block, base, theta_dot, base_state, rest)
     theta_dot = jnp.where(ev.impact, post_theta_dot, theta_dot)
     if base_state is not None:
@@ -509,7 +516,7 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     conditions = jax.tree_util.tree_structure(event_conditions(base))
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
     ev = _decode(c, mask, end.event, end.y[0])
-    y, rest = _apply_jumps(ev, end.y, block, base, opts)
+    y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
     new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration)
     return _merge_redo(c, new, active, redo, limit)
 

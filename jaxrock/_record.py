@@ -51,8 +51,8 @@ class Record(AbstractGroundMotion):
         (Array(9.99, dtype=float64), Array(6., dtype=float64))
     """
 
-    samples: Float[Array, "*batch n"] = parameter("acceleration")
-    dt: Float[Array, "*batch"] = parameter("dt")
+    samples: Float[Array, "*batch n"] = parameter("acceleration", "m/s^2")
+    dt: Float[Array, "*batch"] = parameter("dt", "s")
     length: Int[Array, "*batch"]
     # max |x_g''| over sample ranges [k, k + 2^l) (`with_peaks`), or None.
     peaks: Float[Array, "levels n"] | None
@@ -241,6 +241,24 @@ class Record(AbstractGroundMotion):
     def end_time(self):
         return (self.length - 1) * self.dt
 
+    def acceleration_bound(self, t0, t1):
+        """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
+        largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
+        at most `_BOUND_SAMPLES` samples after t0 (inf for a longer interval)."""
+        n = self.samples.shape[-1]
+        width = min(_BOUND_SAMPLES, n)
+        first = jnp.floor(t0 / self.dt) + 1.0  # the first sample after t0
+        start = jnp.clip(first, 0, n - width).astype(int)
+        near = jax.lax.dynamic_slice_in_dim(self.samples, start, width)
+        index = start + jnp.arange(width)
+        inside = (index >= first) & (index * self.dt < t1) & (index < self.length)
+        ends = jnp.maximum(
+            jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
+        )
+        bound = jnp.maximum(ends, jnp.max(jnp.where(inside, jnp.abs(near), 0.0)))
+        covered = (t1 < (start + width) * self.dt) | (t0 > self.end_time)
+        return jnp.where(covered, bound, jnp.inf)
+
     def with_peaks(self) -> "Record":
         """The record with its table of peaks (`peaks`): max |x_g''| over every
         range of 2^l samples, l = 0, 1, ..., so that `next_kink` finds the
@@ -307,6 +325,10 @@ class Record(AbstractGroundMotion):
     @property
     def pga_in_g(self) -> np.ndarray:
         return self.pga / GRAVITY
+
+
+# Samples `Record.acceleration_bound` reads at most.
+_BOUND_SAMPLES = 16
 
 
 def _first_at_least(peaks, start, level):

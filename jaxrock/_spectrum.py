@@ -7,8 +7,9 @@ import numpy as np
 from ._block import Block
 from ._ground import SinePulse
 from ._isolators import AbstractIsolator
+from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import grid_axis, positive
+from ._misc import grid_axis, positive, unbatched
 from ._results import Outcome, Status
 
 
@@ -35,6 +36,10 @@ class OverturningSpectrum(eqx.Module):
             SUCCESS (NaN if none does): the lower edge of the overturning
             region, above which safe islands may still exist (`outcome`).
         base: a description of the base.
+        slenderness: the block's lambda = h / b (-).
+        size: the block's half-diagonal r (m).
+        seconds: the wall time of the analyses (s).
+        coordinates: the base's parameters (`Coordinates`, no axes).
 
     Examples:
         >>> import jaxrock as jr
@@ -52,6 +57,50 @@ class OverturningSpectrum(eqx.Module):
     status: np.ndarray
     minimum: np.ndarray
     base: str
+    slenderness: float
+    size: float
+    seconds: float
+    coordinates: Coordinates
+
+    def to_xarray(self):
+        """The spectrum as an `xarray.Dataset` over the two ratios.
+
+        Dimensions: "frequency_ratio" (omega_p / p, -) and "amplitude_ratio"
+        (a_p / (g tan alpha), -). Coordinates: the two ratios, the block (0-d
+        `slenderness`, -, and `size`, m) and the base's parameters (0-d, units
+        in `attrs`). Data variables: `outcome`, `impacts` and `status` over
+        both ratios (meanings and codes in `attrs`), and `minimum` over the
+        frequency ratios. Attributes: `base`, `motion` and `seconds` (s).
+
+        Needs xarray (`pip install "jaxrock[xarray]"`).
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> s = jr.overturning_spectrum(jr.Block(10.0, 1.0), jr.FixedBase(),
+            ...                             [2.0, 4.0], [1.5, 3.0, 6.0])
+            >>> ds = s.to_xarray()
+            >>> ds.impacts.sel(frequency_ratio=4.0).values
+            array([7, 1, 0])
+        """
+        dims = ("frequency_ratio", "amplitude_ratio")
+        coords = {
+            "frequency_ratio": (dims[:1], self.frequency_ratio, _RATIOS[0]),
+            "amplitude_ratio": (dims[1:], self.amplitude_ratio, _RATIOS[1]),
+        }
+        for k in ("slenderness", "size"):
+            coords[k] = ((), getattr(self, k), ATTRS[k])
+        minimum = {"long_name": "lowest overturning amplitude ratio", "units": "1"}
+        data = {k: (dims, getattr(self, k)) for k in ("outcome", "impacts", "status")}
+        data["minimum"] = (dims[:1], self.minimum, minimum)
+        attrs = dict(base=self.base, motion=_MOTION, seconds=self.seconds)
+        return dataset(data, coords | self.coordinates.coords, attrs)
+
+
+_RATIOS = (
+    {"long_name": "omega_p / p", "units": "1"},
+    {"long_name": "a_p / (g tan alpha)", "units": "1"},
+)
+_MOTION = "one-sine pulses, a_p sin(omega_p t) for 0 <= t <= 2 pi / omega_p"
 
 
 def overturning_spectrum(
@@ -76,14 +125,15 @@ def overturning_spectrum(
         frequency_ratio: omega_p / p (-), a 1-D array of values > 0.
         amplitude_ratio: a_p / (g tan alpha) (-), a 1-D array of values > 0.
         **map_options: passed to `behavior_map` (`duration` in s, `rtol`,
-            ...).
+            `executor`, ...).
 
     Returns:
         An `OverturningSpectrum` of shape (n_frequency, n_amplitude).
 
     Raises:
         ValueError: a ratio that is not > 0, an axis that is not a non-empty
-            1-D array of real numbers, or an invalid base or map option.
+            1-D array of real numbers, a batch of bases, or an invalid base or
+            map option.
 
     Examples:
         >>> import jaxrock as jr
@@ -99,6 +149,7 @@ def overturning_spectrum(
     ar = grid_axis("amplitude_ratio", amplitude_ratio)
     positive("frequency_ratio", fr)
     positive("amplitude_ratio", ar)
+    unbatched("base", base, "spectrum")
     p = float(block.p)
     uplift = float(block.uplift_acceleration)
     F, A = np.meshgrid(fr, ar, indexing="ij")
@@ -120,6 +171,10 @@ def overturning_spectrum(
         status=status,
         minimum=minimum,
         base=bm.base,
+        slenderness=float(block.slenderness),
+        size=float(block.size),
+        seconds=bm.seconds,
+        coordinates=coordinates(base),
     )
 
 

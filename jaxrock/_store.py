@@ -3,14 +3,10 @@ resumes where it stopped."""
 
 import hashlib
 import os
-import time
 import zipfile
 from pathlib import Path
 
 import numpy as np
-
-# s without a new chunk from the other processes before `wait_for` gives up.
-PEER_TIMEOUT = 3600.0
 
 
 class ChunkStore:
@@ -18,10 +14,11 @@ class ChunkStore:
 
     `manifest.json` holds the map's key (its grid, base, motion and options);
     every chunk file carries the key's digest as well, so that a chunk of
-    another map is refused even if the manifest is lost. Files are written
-    under a temporary name and renamed (atomic): no process reads half a file.
-    A chunk that cannot be read (truncated, corrupt) counts as missing and is
-    computed again.
+    another map is refused even if the manifest is lost. `order.npz` keeps the
+    order in which the first run dealt the cells to the chunks. Files are
+    written under a temporary name and renamed (atomic): an interruption
+    leaves no half file. A chunk that cannot be read (truncated, corrupt)
+    counts as missing and is computed again.
     """
 
     def __init__(self, folder, key: str, arrays: tuple[str, ...]):
@@ -51,45 +48,43 @@ class ChunkStore:
         write(tmp)
         tmp.replace(path)
 
-    def path(self, k: int) -> Path:
-        return self.folder / f"chunk_{k:06d}.npz"
+    def path(self, k: int | str) -> Path:
+        """Chunk k's file, or the file named k."""
+        return self.folder / (
+            f"{k}.npz" if isinstance(k, str) else f"chunk_{k:06d}.npz"
+        )
 
-    def has(self, k: int) -> bool:
-        """Chunk k is stored and readable."""
-        return self.read(k) is not None
-
-    def read(self, k: int) -> dict | None:
-        """Chunk k's arrays; None if it is missing or unreadable. `ValueError`
-        if it belongs to another map."""
+    def read(self, k: int | str, arrays: tuple[str, ...] | None = None) -> dict | None:
+        """Chunk k's arrays (or `arrays` of the file named k); None if it is
+        missing or unreadable. `ValueError` if it belongs to another map."""
         path = self.path(k)
         if not path.exists():
             return None
         try:
             with np.load(path, allow_pickle=False) as f:
                 digest = str(f["key"]) if "key" in f.files else None
-                out = {name: f[name] for name in self.arrays}
+                out = {name: f[name] for name in arrays or self.arrays}
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
             return None
         if digest != self.digest:
             raise self._foreign(path.name)
         return out
 
-    def write(self, k: int, arrays: dict) -> None:
+    def write(self, k: int | str, arrays: dict) -> None:
         self._write(
             self.path(k), lambda tmp: np.savez(tmp, key=np.array(self.digest), **arrays)
         )
 
-    def wait_for(self, k: int) -> None:
-        """Wait for another process to write chunk k (while the store grows)."""
-        path = self.path(k)
-        last, count = time.monotonic(), -1
-        while not path.exists():
-            n = len(list(self.folder.glob("chunk_*.npz")))
-            if n != count:
-                last, count = time.monotonic(), n
-            elif time.monotonic() - last > PEER_TIMEOUT:
-                raise RuntimeError(
-                    f"no new chunk in {self.folder} for {PEER_TIMEOUT:.0f} s while "
-                    f"waiting for {path.name}: has another process stopped?"
-                )
-            time.sleep(0.05)
+    def chunks(self, n: int) -> dict[int, dict]:
+        """{k: arrays} of the chunks k < n stored and readable."""
+        out = {k: self.read(k) for k in range(n)}
+        return {k: c for k, c in out.items() if c is not None}
+
+    def dealt(self, order: np.ndarray) -> np.ndarray:
+        """The order of the cells that the chunks are dealt from: the stored
+        one, else `order`, which is stored."""
+        stored = self.read("order", ("order",))
+        if stored is not None:
+            return stored["order"]
+        self.write("order", {"order": order})
+        return order

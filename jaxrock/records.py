@@ -410,7 +410,10 @@ def fema_p695(set: str = "nearfield_pulse") -> list[Record]:
     azimuth, the last three digits: "IMPVALL/H-E11140" gives 140), or None
     when the name ends otherwise (e.g. "CHICHI/CHY101-E", "LANDERS/CLW-LN":
     give `rotate` their `azimuths`), and its `rsn` the PEER record sequence
-    number. The sets are read once per process.
+    number. The sets are read once per process. The near-field records come
+    rotated to the fault: component `a` is the fault-normal motion and `b`
+    the fault-parallel one, so `b`'s azimuth is the fault's strike and
+    `strike_normal(a, b, strike=b.azimuth)` is `a` reversed.
 
     Args:
         set: The record set: "farfield" (22 records), "nearfield" (28),

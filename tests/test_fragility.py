@@ -40,3 +40,12 @@ def test_fragility_of_a_block_under_scaled_pulse():
     assert np.all(frag.status == jr.Status.SUCCESS)
     curve = frag.probability(np.array([0.5, 5.0]))
     assert curve[0] < 0.5 < curve[1]
+    # As labeled arrays: the batch of pulses, by amplitude (m/s).
+    pytest.importorskip("xarray")
+    ds = frag.to_xarray()
+    assert ds.im.dims == ("motion",) and ds.im.attrs["units"] == "1"
+    np.testing.assert_array_equal(ds.amplitude, motions.amplitude)
+    assert ds.amplitude.attrs["units"] == "m/s" and float(ds.gamma) == float(p.gamma)
+    strong = float(motions.amplitude[20])
+    assert bool(ds.overturned.sel(amplitude=strong)) == frag.overturned[20]
+    np.testing.assert_array_equal(ds.rocked, frag.rocked)

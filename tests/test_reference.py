@@ -153,6 +153,14 @@ def test_records_match_reference(two_records, key):
     suite = jr.Record.stack(two_records)
     lam, size = np.array([2.5, 3.5, 5.0, 6.5]), np.array([0.4, 1.2])
     bm = jr.behavior_map(lam, size, base, suite, rtol=1e-10, atol=1e-12)
+    # Cells whose response depends on the solver's last digits (a block
+    # chattering at rest while the ground nears its uplift threshold): rtol
+    # 1e-12 moves them by more than 1e-5. Few, and left out of the comparison.
+    tight = jr.behavior_map(lam, size, base, suite, rtol=1e-12, atol=1e-14)
+    sensitive = np.abs(tight.max_rotation - bm.max_rotation) > 1e-5 * np.maximum(
+        np.abs(bm.max_rotation), 1e-3
+    )
+    assert sensitive.sum() <= 1
     duration = float(np.max(suite.end_time)) + 5.0
     outcomes = set()
     for k, record in enumerate(two_records):
@@ -170,6 +178,8 @@ def test_records_match_reference(two_records, key):
             where = (key, k, lam[i], size[j])
             assert bm.status[k, i, j] == jr.Status.SUCCESS, where
             assert bm.outcome[k, i, j] == theirs["outcome"], where
+            if sensitive[k, i, j]:
+                continue
             np.testing.assert_allclose(
                 bm.max_rotation[k, i, j],
                 theirs["max_rotation"],

@@ -50,6 +50,21 @@ def test_spectrum_shape(fixed_spectrum):
     assert np.all(fixed_spectrum.outcome[:, AMP < 1.0] != jr.Outcome.OVERTURNED)
 
 
+def test_spectrum_as_labeled_arrays(fixed_spectrum):
+    pytest.importorskip("xarray")
+    s, ds = fixed_spectrum, fixed_spectrum.to_xarray()
+    assert ds.outcome.dims == ("frequency_ratio", "amplitude_ratio")
+    np.testing.assert_array_equal(ds.amplitude_ratio, AMP)
+    for k in ("outcome", "impacts", "status"):
+        np.testing.assert_array_equal(ds[k].sel(frequency_ratio=2.0), getattr(s, k)[1])
+    # The lower edge, from the labels: the least overturning amplitude ratio.
+    over = (ds.outcome == jr.Outcome.OVERTURNED) & (ds.status == jr.Status.SUCCESS)
+    edge = ds.amplitude_ratio.where(over).min("amplitude_ratio")
+    np.testing.assert_array_equal(edge, ds.minimum)
+    assert float(ds.slenderness) == 4.0 and float(ds.size) == 1.0
+    assert ds.attrs["base"] == "fixed base" and ds.size.attrs["units"] == "m"
+
+
 def test_no_impact_edge_tends_to_linearized_closed_form():
     # Makris & Roussos's mode 2 (overturning without impact), from the closed-form
     # linearized solution: the exact edge must approach it as alpha -> 0. At

@@ -8,6 +8,7 @@ import pytest
 
 import jaxrock as jr
 from jaxrock import _maps
+from jaxrock._store import ChunkStore
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
@@ -75,6 +76,30 @@ def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
     assert chunk.stat().st_size > 100  # written again, whole
 
 
+def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
+    """The store keeps the order in which its first run dealt the cells to the
+    chunks; a rerun, whatever its own pilots' order (other hardware), computes
+    the missing chunks of that order, and chunks of two orders are refused."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    order = np.load(tmp_path / "order.npz")["order"]
+    assert sorted(order) == list(range(15))
+    key = (tmp_path / "manifest.json").read_text()
+    store = ChunkStore(tmp_path, key, ())
+    store.write("order", {"order": order[::-1].copy()})  # as if dealt in reverse
+    for chunk in sorted(tmp_path.glob("chunk_*.npz"))[1:]:
+        chunk.unlink()
+    with pytest.raises(RuntimeError, match="every cell exactly once"):
+        jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    (tmp_path / "chunk_000000.npz").unlink()
+    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    for k in range(4):
+        chunk = np.load(tmp_path / f"chunk_{k:06d}.npz")
+        np.testing.assert_array_equal(chunk["index"], order[::-1][k::4])
+    np.testing.assert_array_equal(again.outcome, linear_map.outcome)
+    np.testing.assert_allclose(again.max_rotation, linear_map.max_rotation, rtol=1e-9)
+
+
 def _saved_map(tmp_path, **changes):
     arrays = dict(
         slenderness=np.array([2.0, 3.0]),
@@ -98,6 +123,24 @@ def _saved_map(tmp_path, **changes):
 def test_load_reads_a_consistent_map(tmp_path):
     bm = jr.BehaviorMap.load(_saved_map(tmp_path))
     assert bm.outcome.shape == (2, 1) and bm.counts()["no_rocking"] == 2
+
+
+def test_a_file_without_coordinates_loads_and_converts(tmp_path):
+    """A map file without the batch axes' coordinates (as `save` wrote before
+    it kept them) reads as before; its leading axes are "batch" ones."""
+    pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    names = [f for f in _maps._FIELDS if f not in ("max_rotation", "uplift_time")]
+    cube = {k: np.zeros((3, 2, 1), dtype=int) for k in names}
+    cube |= dict(max_rotation=np.zeros((3, 2, 1)), uplift_time=np.ones((3, 2, 1)))
+    bm = jr.BehaviorMap.load(_saved_map(tmp_path, **cube))
+    assert bm.coordinates is None and bm.outcome.shape == (3, 2, 1)
+    assert bm.to_xarray().outcome.dims == ("batch", "slenderness", "size")
+    assert bm.select(2).to_xarray().outcome.dims == ("slenderness", "size")
+    bm.save(tmp_path / "map.nc")
+    back = jr.BehaviorMap.load(tmp_path / "map.nc")
+    assert back.coordinates is None and back.motion == "m"
+    np.testing.assert_array_equal(back.uplift_time, bm.uplift_time)
 
 
 @pytest.mark.parametrize(

@@ -53,6 +53,54 @@ def test_a_suite_map_equals_each_records_own_map(records, base):
     assert len(set(np.unique(bm.outcome))) >= 2  # the comparison means something
 
 
+def test_a_suite_map_over_bases_as_labeled_arrays(records, tmp_path):
+    """Dimensions base and record, labelled by the periods and the records'
+    names, select the cells they name; NetCDF and Zarr keep the names."""
+    xr = pytest.importorskip("xarray")
+    bases = jr.LinearIsolator(period=np.array([1.5, 2.0]), damping=0.35, mass_ratio=0.5)
+    bm = jr.behavior_map(LAM, SIZE, bases, jr.Record.stack(records), progress=False)
+    ds = bm.to_xarray()
+    names = [r.name for r in records]
+    assert ds.outcome.dims == ("base", "record", "slenderness", "size")
+    assert list(ds.record.values) == names and bm.motion_names == tuple(names)
+    np.testing.assert_array_equal(ds.dt, [float(r.dt) for r in records])
+    for b, period in enumerate([1.5, 2.0]):
+        for i, name in enumerate(names):
+            cell = ds.sel(period=period, record=name)
+            for f in FIELDS:
+                np.testing.assert_array_equal(cell[f], getattr(bm, f)[b, i])
+    # A base of the ensemble is a suite map; a record of that, one record's.
+    by_base = bm.select(1)
+    assert by_base.motion_names == bm.motion_names and "[1]" in by_base.motion
+    assert by_base.select(0).motion == names[0]
+    xr.testing.assert_identical(
+        by_base.to_xarray(), ds.sel(period=2.0).assign_attrs(motion=by_base.motion)
+    )
+    for suffix in (".nc", ".zarr"):
+        bm.save(tmp_path / f"suite{suffix}")
+        back = jr.BehaviorMap.load(tmp_path / f"suite{suffix}")
+        assert back.motion_names == bm.motion_names
+        xr.testing.assert_identical(back.to_xarray(), ds)
+    assert len(set(np.unique(bm.outcome))) >= 2  # the labels pick different cells
+
+
+def test_the_rest_rule_is_converged_under_a_record(records):
+    """Cells of the Pacoima Dam map whose response a rule on the rebound alone
+    changes (outcome, or max rotation by 1e-3 to 1e-2, between rest tolerances
+    1e-6 and 1e-8): the rule that also waits for the chatter to end before
+    the ground can lift the block gives the same results at 1e-6 and 1e-9."""
+    lam, size = np.array([3.6, 4.7, 6.0]), np.array([1.8, 3.1])
+    maps = [
+        jr.behavior_map(lam, size, jr.FixedBase(), records[0], rest_tolerance=tol)
+        for tol in (1e-6, 1e-9)
+    ]
+    np.testing.assert_array_equal(maps[0].outcome, maps[1].outcome)
+    np.testing.assert_allclose(maps[0].max_rotation, maps[1].max_rotation, rtol=1e-9)
+    assert np.all(maps[1].impacts >= maps[0].impacts)
+    assert np.sum(maps[1].impacts) > np.sum(maps[0].impacts)  # the rule ran
+    assert set(np.unique(maps[0].outcome)) == {1, 2}
+
+
 def test_scaled_records_equal_records_of_scaled_samples(records):
     record = records[0]
     by_hand = jr.Record(2.5 * np.asarray(record.samples), record.dt)
@@ -127,6 +175,17 @@ def test_fragility_over_a_suite_of_records(records):
     assert frag.rocked.any() and not frag.rocked.all()
     with pytest.raises(ValueError, match="ensemble"):
         jr.fragility(3.0, 1.0, jr.FixedBase(), records[0])
+    # As labeled arrays: scales x records.
+    pytest.importorskip("xarray")
+    ds = frag.to_xarray()
+    assert ds.im.dims == ("scale", "record") and ds.attrs["measure"] == "pga"
+    np.testing.assert_array_equal(ds.scale, scales)
+    assert list(ds.record.values) == list(frag.motion_names)
+    for k in ("im", "rocked", "overturned", "status"):
+        value = ds[k].sel(scale=2.0, record=frag.motion_names[1])
+        assert value == getattr(frag, k)[3 * 2 + 1], k
+    assert float(ds.slenderness) == 3.0 and ds.im.attrs["units"] == "m/s^2"
+    assert float(ds.median_rocking) == frag.median_rocking
 
 
 def test_cli_fragility_and_map_over_records(tmp_path, capsys):
