@@ -70,8 +70,8 @@ def strike_normal_record(package, rsn, strike):
 
 
 def sampled(motion, dt=0.002):
-    """x_g'' (m/s^2) at step `dt` (s) over the motion and 5 s after: a
-    record's samples, a pulse's values."""
+    """x_g'' (m/s^2) and its time step (s): a record's samples, or a pulse's
+    values every `dt` over the pulse and 5 s after."""
     if isinstance(motion, jr.Record):
         return np.asarray(motion.samples), float(motion.dt)
     t = np.arange(0.0, float(motion.end_time) + 5.0, dt)
