@@ -13,9 +13,6 @@ For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`),
 and only the lanes with an event run the root find, in batches (`flat_step`).
 """
 
-import functools
-import math
-
 import diffrax
 import equinox as eqx
 import jax
@@ -169,22 +166,27 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     )
 
 
-@functools.cache
-def _tsit5_weights():
-    """Tsit5's dense output weights in monomials of s = (t - t0) / h:
-    b_i(s) = sum_m W[i, m - 1] s^m, m = 1..4 (b_i(0) = 0), read off Diffrax's
-    own interpolant as its Taylor coefficients at s = 0 (stages: unit vectors)."""
-    columns = []
-    with jax.ensure_compile_time_eval():  # constants, also when called in a trace
-        zero = jnp.zeros(7)
-        interpolant = diffrax.Tsit5.interpolation_cls(
-            t0=0.0, t1=1.0, y0=zero, y1=zero, k=jnp.eye(7)
-        )
-        derivative = interpolant.evaluate
-        for m in range(1, 5):
-            derivative = jax.jacfwd(derivative)
-            columns.append(np.asarray(derivative(jnp.asarray(0.0))) / math.factorial(m))
-    return np.stack(columns, axis=1)
+# Tsit5's dense output weights in monomials of s = (t - t0) / h:
+# b_i(s) = sum_m W[i, m - 1] s^m, m = 1..4 (b_i(0) = 0): the Taylor coefficients
+# at s = 0 of Diffrax's own interpolant (tests/test_flat.py checks them against
+# it). Constants, not computed while a map is traced: that took about a hundred
+# small compiles in every process.
+_TSIT5_WEIGHTS = np.array(
+    [
+        [
+            0.9999999999999998,
+            -2.763706197274826,
+            2.913255461821912,
+            -1.0530884977290216,
+        ],
+        [0.0, 0.13169999999999998, -0.22339999999999996, 0.1017],
+        [0.0, 3.930296236894751, -5.941033872131505, 2.490627285651253],
+        [0.0, -12.411077166933676, 30.33818863028232, -16.548102889244902],
+        [0.0, 37.50931341651104, -88.1789048947664, 47.379521962819275],
+        [0.0, -27.896526289197286, 65.09189467479366, -34.87065786149661],
+        [0.0, 1.5, -4.0, 2.5],
+    ]
+)
 
 
 def _dense_in_s(solver, a: "_Attempt"):
@@ -201,7 +203,7 @@ def _dense_in_s(solver, a: "_Attempt"):
         return jnp.stack(
             [
                 sum(w * k[i] for i, w in enumerate(column) if w != 0)
-                for column in _tsit5_weights().T
+                for column in _TSIT5_WEIGHTS.T
             ]
         )
 
