@@ -3,6 +3,7 @@
 import abc
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -56,11 +57,14 @@ class AbstractGroundMotion(AbstractChecked):
     def next_kink(
         self, t: Float[Array, ""], quiet_below=None
     ) -> Float[Array, ""] | None:
-        """The first kink of x_g'' after t (s; inf past the last): no step
-        crosses one. None where x_g'' is smooth: a pulse's only kinks are its
-        start and end, where segments stop anyway (a later start is left to
-        the error control, cheaper than clipping every step). `quiet_below`
-        (m/s^2): kinks before |x_g''| can reach it may be skipped."""
+        """Where the step that starts at t must end (s; inf: anywhere), or None
+        (no limit at all). A record's steps end at its samples, the kinks of
+        x_g''. `quiet_below` (m/s^2; an array: a lane's own level, 0 for a
+        rocking lane), for a block at rest on a fixed base, which uplifts only
+        where |x_g''| reaches that level: a step may then end anywhere before
+        |x_g''| could reach it (a record skips samples), and must end before
+        it (a pulse: no short excursion beyond the level hides inside a step,
+        between two step ends where the uplift conditions are checked)."""
         del t, quiet_below
         return None
 
@@ -104,6 +108,25 @@ class AbstractGroundMotion(AbstractChecked):
     def max_step(self) -> Float[Array, ""] | None:
         """Largest integration step (s), so that no uplift hides inside a step."""
         return None
+
+
+def _below_level_until(motion, t, quiet_below, curvature, start):
+    """The end of the step from t of a closed-form motion (see `next_kink`):
+    with a = x_g''(t), a' its rate and |(x_g'')''| <= `curvature` (m/s^4, a
+    bound), |x_g''(t + h)| <= |a| + |a'| h + curvature h^2 / 2, which stays
+    below `quiet_below` for h < 2 m / (|a'| + sqrt(a'^2 + 2 curvature m)),
+    m = quiet_below - |a|. Before `start`, where x_g'' begins with a kink,
+    the step ends there. At least `max_step` / 1000: an excursion beyond the
+    level by less than curvature (max_step / 1000)^2 / 2 may still hide."""
+    if quiet_below is None:
+        return None
+    a, rate = jax.jvp(motion.acceleration, (t,), (jnp.ones_like(t),))
+    margin = jnp.maximum(quiet_below - jnp.abs(a), 0.0)
+    root = jnp.sqrt(rate * rate + 2.0 * curvature * margin)
+    h = 2.0 * margin / jnp.maximum(jnp.abs(rate) + root, jnp.finfo(t.dtype).tiny)
+    h = jnp.maximum(h, 1e-3 * motion.max_step)
+    end = jnp.where(t < start, jnp.minimum(t + h, start), t + h)
+    return jnp.where((quiet_below > 0) & (t < motion.end_time), end, jnp.inf)
 
 
 class MPPulse(AbstractGroundMotion):
@@ -209,6 +232,15 @@ class MPPulse(AbstractGroundMotion):
         jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
+    def next_kink(self, t, quiet_below=None):
+        # |(x_g'')''| <= |A| pi f_p / gamma (2 pi f_p)^2
+        #   (1/gamma^2 + 3/gamma + 3 + 2 gamma).
+        w = 2.0 * jnp.pi * self.frequency
+        g = self.gamma
+        curvature = jnp.abs(self.amplitude) * 0.5 * w**3 / g
+        curvature = curvature * (1.0 / g**2 + 3.0 / g + 3.0 + 2.0 * g)
+        return _below_level_until(self, t, quiet_below, curvature, self.start_time)
+
     def scaled(self, factor) -> "MPPulse":
         factor = scale_factors(factor)
         shape = factor.shape + self.batch_shape
@@ -285,6 +317,10 @@ class SinePulse(AbstractGroundMotion):
     def acceleration_bound(self, t0, t1):
         jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
+
+    def next_kink(self, t, quiet_below=None):
+        curvature = jnp.abs(self.amplitude) * (2.0 * jnp.pi * self.frequency) ** 2
+        return _below_level_until(self, t, quiet_below, curvature, 0.0)
 
     def scaled(self, factor) -> "SinePulse":
         factor = scale_factors(factor)

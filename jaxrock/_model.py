@@ -148,8 +148,9 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     max_step = motion.max_step
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = diffrax.PIDController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
-    if motion.next_kink(c.t) is not None:
-        controller = KinkClip(controller, motion, quiet_level(c, block, base))
+    quiet_below = quiet_level(c, block, base)
+    if motion.next_kink(c.t, quiet_below) is not None:
+        controller = KinkClip(controller, motion, quiet_below)
     return active, args, conditions, t_stop, dtmax, controller
 
 

@@ -155,6 +155,29 @@ def test_no_rocking_below_threshold(base):
     assert int(rocks.outcome) != jr.Outcome.NO_ROCKING
 
 
+def test_an_uplift_shorter_than_a_step_is_found():
+    """A pulse whose |x_g''| exceeds g tan(alpha) by 0.02% for about 20 ms (the
+    pulse fitted to El Centro #6 and lambda = 5.9): a block at rest on a fixed
+    base steps only as far as |x_g''| cannot reach the threshold, so the
+    excursion cannot hide between two step ends; 0.01% below it, no uplift.
+    The same in a map, whose pilots run the translation phase."""
+    pulse = jr.MPPulse(
+        0.9896702283884652, 0.26748362633618167, 2.0261584733312343, 266.40049492842587
+    )
+    ts = np.linspace(0.0, float(pulse.end_time), 400001)
+    peak = float(np.max(np.abs(np.asarray(pulse.acceleration(ts)))))
+    assert 1.0 < peak / (G / 5.9) < 1.0003  # barely above the threshold
+    up = jr.simulate(jr.Block(5.9, 1.0), jr.FixedBase(), pulse)
+    assert int(up.outcome) == jr.Outcome.ROCKING
+    assert abs(float(pulse.acceleration(up.uplift_time))) == pytest.approx(
+        G / 5.9, rel=1e-9
+    )
+    calm = jr.simulate(jr.Block(G / peak * 0.9999, 1.0), jr.FixedBase(), pulse)
+    assert int(calm.outcome) == jr.Outcome.NO_ROCKING
+    bm = jr.behavior_map([5.8, 5.9, 6.0], [0.5, 1.0], jr.FixedBase(), pulse)
+    np.testing.assert_array_equal(bm.outcome, [[0, 0], [1, 1], [1, 1]])
+
+
 def test_phase_shift_mirrors_rotation():
     a, f, g, nu = 1.15, 0.68, 1.6, 30.0
     block, base = jr.Block(3.0, 0.5), jr.LinearIsolator(2.0, 0.35, 0.5)
