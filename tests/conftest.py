@@ -1,4 +1,6 @@
+import atexit
 import os
+import shutil
 import tempfile
 
 import matplotlib
@@ -8,10 +10,11 @@ matplotlib.use("Agg")
 os.environ.setdefault("JAXROCK_SMALL", "1")
 # One XLA compilation cache for this run, shared with the subprocesses (CLI,
 # devices): much of the suite's time is compiling. A fresh folder per run, so
-# every run still compiles everything once.
-os.environ.setdefault(
-    "JAX_COMPILATION_CACHE_DIR", tempfile.mkdtemp(prefix="jaxrock-xla-cache-")
-)
+# every run still compiles everything once; it is removed at the end.
+if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+    _cache = tempfile.mkdtemp(prefix="jaxrock-xla-cache-")
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = _cache
+    atexit.register(shutil.rmtree, _cache, ignore_errors=True)
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 
 import jax  # noqa: E402
