@@ -930,6 +930,38 @@ class _ChunkRunner:
         return out
 
 
+def _chunk_plan(n: int, chunk_size: int | None) -> tuple[int, int, int]:
+    """(cells a chunk, its padded size, chunks) of a map of n cells. Chunks are
+    padded to a power of two (at most `chunk_size`): maps of other sizes reuse
+    a handful of compiles. Small maps all take one chunk shape, that of a full
+    set of lanes (padding costs nothing but idle lanes; a compile costs
+    seconds)."""
+    chunk = n if chunk_size is None else min(chunk_size, n)
+    padded = max(1 << (chunk - 1).bit_length(), LANE_WIDTH)
+    padded = padded if chunk_size is None else min(padded, chunk_size)
+    return chunk, padded, -(-n // chunk)
+
+
+def _run_pilots(runner: _ChunkRunner, grid: _Grid, chunk: int):
+    """Pass 1: the pilots, from t = 0 to where their cells part ways, `chunk`
+    at a time. Returns every cell's start (its pilot's carry) and the pilots'
+    useful and executed lane-steps."""
+    blank = grid.blank_carries()
+    pilots = range(0, grid.pilots, chunk)
+    pilots = {
+        k: np.arange(i, min(i + chunk, grid.pilots)) for k, i in enumerate(pilots)
+    }
+    done = runner.run(pilots, grid.pilot_inputs, blank, True)
+    leaves = zip(*(done[k]["carries"] for k in range(len(done))))
+    carries = jax.tree_util.tree_unflatten(
+        jax.tree_util.tree_structure(blank), map(np.concatenate, leaves)
+    )
+    starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
+    useful = sum(int(d["useful"]) for d in done.values())
+    executed = sum(int(d["executed"]) for d in done.values())
+    return starts, useful, executed
+
+
 def behavior_map(
     slenderness,
     size,
@@ -993,15 +1025,7 @@ def behavior_map(
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    n = grid.n
-    chunk = n if chunk_size is None else min(chunk_size, n)
-    # Chunks are padded to a power of two (at most `chunk_size`): maps of
-    # other sizes reuse a handful of compiles. Small maps all take one chunk
-    # shape, that of a full set of lanes (padding costs nothing but idle
-    # lanes; a compile costs seconds).
-    padded = max(1 << (chunk - 1).bit_length(), LANE_WIDTH)
-    padded = padded if chunk_size is None else min(padded, chunk_size)
-    chunks = -(-n // chunk)
+    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size)
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
@@ -1021,20 +1045,7 @@ def behavior_map(
         )
     useful = executed = 0
     if len(results) < chunks:
-        # Pass 1: the pilots, from t = 0 to where their cells part ways.
-        blank = grid.blank_carries()
-        pilots = range(0, grid.pilots, chunk)
-        pilots = {
-            k: np.arange(i, min(i + chunk, grid.pilots)) for k, i in enumerate(pilots)
-        }
-        done = runner.run(pilots, grid.pilot_inputs, blank, True)
-        leaves = zip(*(done[k]["carries"] for k in range(len(done))))
-        carries = jax.tree_util.tree_unflatten(
-            jax.tree_util.tree_structure(blank), map(np.concatenate, leaves)
-        )
-        starts = jax.tree_util.tree_map(lambda x: x[grid.pilot_of_cell], carries)
-        useful = sum(int(d["useful"]) for d in done.values())
-        executed = sum(int(d["executed"]) for d in done.values())
+        starts, useful, executed = _run_pilots(runner, grid, chunk)
         # Cells by start time (the most work first), dealt to the chunks in
         # turn: chunks of equal work, and short analyses fill each one's tail.
         # A store keeps its first run's order: a rerun whose pilots differ in
