@@ -55,6 +55,16 @@ def fit_lognormal(im, failed, steps: int = 2000):
     negative log-likelihood of the binary outcomes by `steps` iterations of
     Adam (learning rate 0.05), from the mean of ln IM and beta = 0.5.
 
+    Separated outcomes have no maximum-likelihood fit: when
+    a = max{IM : not failed} <= b = min{IM : failed}, as is usual for one
+    motion scaled up until the block rocks, the likelihood approaches its
+    supremum only as beta -> 0 (with the median strictly between a and b, or
+    at a = b when they are equal), and an iterative fit stops at an arbitrary
+    small beta. The fit is then that limit, a step: median = sqrt(a b), the middle
+    of the gap on the log scale, and beta = 0, so that P(failure | IM) is 0
+    below the median, 1 above it and 1/2 at it (`Fragility.probability`).
+    The data place the median only somewhere between a and b.
+
     Args:
         im: the intensity measure of each analysis (any unit), a 1-D array of
             values > 0.
@@ -63,8 +73,9 @@ def fit_lognormal(im, failed, steps: int = 2000):
         steps: the number of Adam iterations; default 2000.
 
     Returns:
-        (median, beta) as floats; both NaN when every or no analysis failed
-        (the likelihood has no maximum then).
+        (median, beta) as floats; (sqrt(a b), 0.0) when the outcomes are
+        separated (above); both NaN when every or no analysis failed (the
+        likelihood has no maximum then, nor a step to tend to).
 
     Raises:
         ValueError: `im` and `failed` that are not 1-D arrays of one length,
@@ -88,6 +99,9 @@ def fit_lognormal(im, failed, steps: int = 2000):
     positive("im", im)
     if failed.all() or not failed.any():
         return float("nan"), float("nan")
+    below, above = im[~failed].max(), im[failed].min()
+    if below <= above:  # separated: the limit beta -> 0, a step
+        return float(np.sqrt(below * above)), 0.0
     p = _fit(jnp.log(jnp.asarray(im)), jnp.asarray(failed, dtype=float), steps)
     return float(jnp.exp(p[0])), float(jnp.exp(p[1]))
 
@@ -130,11 +144,14 @@ class Fragility(eqx.Module):
             dimensionless PGA / (g tan alpha).
         median_rocking: the median of the fit of P(rocking), in the units of
             `im`; NaN when every or no analysis rocked.
-        beta_rocking: the fit's standard deviation of ln IM (-); NaN likewise.
+        beta_rocking: the fit's standard deviation of ln IM (-); NaN likewise,
+            and 0 when no analysis that rocked has a smaller IM than one that
+            did not (a step at the median, see `fit_lognormal`), as for one
+            motion scaled.
         median_overturning: the median of the fit of P(overturning), in the
             units of `im`; NaN when every or no analysis overturned.
         beta_overturning: the fit's standard deviation of ln IM (-); NaN
-            likewise.
+            likewise, and 0 for separated outcomes as `beta_rocking`.
         slenderness: the block's lambda = h / b (-).
         size: the block's half-diagonal r (m).
         base: a description of the base.
@@ -178,10 +195,17 @@ class Fragility(eqx.Module):
     motion_names: tuple | None = None
 
     def probability(self, im, which: str = "overturning"):
-        """The fitted lognormal P(rocking or overturning | IM)."""
+        """The fitted lognormal P(rocking or overturning | IM).
+
+        With beta = 0 (separated outcomes, see `fit_lognormal`) the curve is
+        its limit, a step: 0 below the median, 1 above it and 1/2 at it.
+        """
         median = getattr(self, f"median_{which}")
         beta = getattr(self, f"beta_{which}")
-        return np.asarray(norm.cdf(np.log(np.asarray(im) / median) / beta))
+        im = np.asarray(im)
+        if beta == 0:
+            return np.where(im > median, 1.0, np.where(im < median, 0.0, 0.5))
+        return np.asarray(norm.cdf(np.log(im / median) / beta))
 
     def to_xarray(self):
         """The analyses as an `xarray.Dataset` over the scales and the motions.

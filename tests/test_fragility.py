@@ -40,6 +40,12 @@ def test_fragility_of_a_block_under_scaled_pulse():
     assert np.all(frag.status == jr.Status.SUCCESS)
     curve = frag.probability(np.array([0.5, 5.0]))
     assert curve[0] < 0.5 < curve[1]
+    # Rocking is separated at pga_ratio 1: its fit is a step there (beta 0).
+    below, above = frag.im[~frag.rocked].max(), frag.im[frag.rocked].min()
+    assert frag.beta_rocking == 0.0
+    assert frag.median_rocking == pytest.approx(np.sqrt(below * above), rel=1e-12)
+    step = frag.probability([below, frag.median_rocking, above], "rocking")
+    np.testing.assert_array_equal(step, [0.0, 0.5, 1.0])
     # As labeled arrays: the batch of pulses, by amplitude (m/s).
     pytest.importorskip("xarray")
     ds = frag.to_xarray()
@@ -49,3 +55,21 @@ def test_fragility_of_a_block_under_scaled_pulse():
     strong = float(motions.amplitude[20])
     assert bool(ds.overturned.sel(amplitude=strong)) == frag.overturned[20]
     np.testing.assert_array_equal(ds.rocked, frag.rocked)
+
+
+@pytest.mark.parametrize(
+    "im, failed, median",
+    [
+        # One motion scaled: every failure above every non-failure.
+        (np.geomspace(0.1, 2.0, 40), np.geomspace(0.1, 2.0, 40) > 1.0, None),
+        ([1.0, 2.0, 3.0, 10.0, 11.0, 12.0], [0, 0, 0, 1, 1, 1], np.sqrt(30.0)),
+        # A tie at the boundary: the step is at the tied IM.
+        ([1.0, 2.0, 2.0, 3.0], [0, 0, 1, 1], 2.0),
+        ([2.0, 1.0], [1, 0], np.sqrt(2.0)),
+    ],
+)
+def test_lognormal_fit_of_separated_outcomes_is_a_step(im, failed, median):
+    im, failed = np.asarray(im), np.asarray(failed, bool)
+    if median is None:
+        median = np.sqrt(im[~failed].max() * im[failed].min())
+    assert jr.fit_lognormal(im, failed) == (pytest.approx(median, rel=1e-12), 0.0)
