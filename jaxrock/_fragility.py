@@ -65,6 +65,16 @@ def fit_lognormal(im, failed, steps: int = 2000):
     below the median, 1 above it and 1/2 at it (`Fragility.probability`).
     The data place the median only somewhere between a and b.
 
+    Outcomes whose failures do not lean to larger IM have no increasing fit
+    either. With z = s ln IM - c (s = 1 / beta, c = ln(median) / beta), the
+    log-likelihood is concave in (c, s), and at s = 0, with c at its best,
+    its slope in s is proportional to sum(ln IM_i (failed_i - f)), f the
+    share of failures. When mean{ln IM : failed} <= mean{ln IM : not failed}
+    (e.g. every failure below every non-failure, or one IM for all) that
+    slope is <= 0: the supremum is approached as beta -> infinity, at the
+    constant P(failure | IM) = f, a limit with no finite median. Both are
+    NaN then.
+
     Args:
         im: the intensity measure of each analysis (any unit), a 1-D array of
             values > 0.
@@ -74,8 +84,9 @@ def fit_lognormal(im, failed, steps: int = 2000):
 
     Returns:
         (median, beta) as floats; (sqrt(a b), 0.0) when the outcomes are
-        separated (above); both NaN when every or no analysis failed (the
-        likelihood has no maximum then, nor a step to tend to).
+        separated (above); both NaN when every or no analysis failed, or
+        when the failures do not lean to larger IM (the likelihood has no
+        maximum then, nor a step to tend to).
 
     Raises:
         ValueError: `im` and `failed` that are not 1-D arrays of one length,
@@ -97,7 +108,10 @@ def fit_lognormal(im, failed, steps: int = 2000):
             f"{im.shape} and {failed.shape}"
         )
     positive("im", im)
+    log_im = np.log(im)
     if failed.all() or not failed.any():
+        return float("nan"), float("nan")
+    if log_im[failed].mean() <= log_im[~failed].mean():  # no increasing fit
         return float("nan"), float("nan")
     below, above = im[~failed].max(), im[failed].min()
     if below <= above:  # separated: the limit beta -> 0, a step
@@ -143,13 +157,15 @@ class Fragility(eqx.Module):
         measure: "pga" (m/s^2), "pgv" (m/s) or "pga_ratio", the
             dimensionless PGA / (g tan alpha).
         median_rocking: the median of the fit of P(rocking), in the units of
-            `im`; NaN when every or no analysis rocked.
+            `im`; NaN when every or no analysis rocked, or when rocking does
+            not lean to larger IM (see `fit_lognormal`).
         beta_rocking: the fit's standard deviation of ln IM (-); NaN likewise,
             and 0 when no analysis that rocked has a smaller IM than one that
             did not (a step at the median, see `fit_lognormal`), as for one
             motion scaled.
         median_overturning: the median of the fit of P(overturning), in the
-            units of `im`; NaN when every or no analysis overturned.
+            units of `im`; NaN when every or no analysis overturned, or
+            when overturning does not lean to larger IM.
         beta_overturning: the fit's standard deviation of ln IM (-); NaN
             likewise, and 0 for separated outcomes as `beta_rocking`.
         slenderness: the block's lambda = h / b (-).

@@ -73,3 +73,15 @@ def test_lognormal_fit_of_separated_outcomes_is_a_step(im, failed, median):
     if median is None:
         median = np.sqrt(im[~failed].max() * im[failed].min())
     assert jr.fit_lognormal(im, failed) == (pytest.approx(median, rel=1e-12), 0.0)
+
+
+@pytest.mark.parametrize(
+    "im, failed",
+    [
+        ([1.0, 2.0, 3.0, 4.0], [1, 1, 0, 0]),  # every failure below
+        ([1.0, 2.0, 3.0, 4.0, 5.0], [1, 0, 1, 0, 0]),
+        ([2.0, 2.0, 2.0], [0, 1, 1]),  # one IM for all
+    ],
+)
+def test_lognormal_fit_of_failures_not_leaning_to_larger_im_is_nan(im, failed):
+    assert np.isnan(jr.fit_lognormal(im, failed)).all()
