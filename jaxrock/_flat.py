@@ -9,8 +9,10 @@ the same solver and controller (Tsit5 and Diffrax's PIDController by default);
 the same event conditions are checked at the step's end, an event is located
 on the step's dense output by bracketed Newton, and `transition` applies it
 exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
-For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`),
-and only the lanes with an event run the root find, in batches (`flat_step`).
+For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`).
+Most steps end with no event: their lanes only move on (`move_on`), and only
+the others (an event, a segment's end) run the root find and `transition`,
+gathered in batches (`flat_step`).
 """
 
 import diffrax
@@ -23,9 +25,11 @@ from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import computed_once
+from ._misc import computed_once, where_lanes
 from ._model import (
     event_conditions,
+    move_on,
+    moves_on,
     quiet_level,
     redo_limit,
     segment_setup,
@@ -102,6 +106,7 @@ class _Attempt(eqx.Module):
     args: Args
     next_dt: jax.Array
     failed: jax.Array
+    moves_on: jax.Array  # no event, no segment end: `move_on` ends the step
 
     @property
     def event(self):
@@ -149,6 +154,8 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         ctrl_result != diffrax.RESULTS.successful
     )
     next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
+    t_end = jnp.where(keep, t1, t0)
+    plain = ~before & moves_on(c, t_end, failed, motion, duration, opts)
     return _Attempt(
         t0,
         t1,
@@ -163,6 +170,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         args,
         next_dt,
         failed,
+        plain,
     )
 
 
@@ -308,6 +316,10 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, a.next_dt))
 
 
+def _is_none(x):
+    return x is None
+
+
 # Lanes whose events are located together (a batch of the root find).
 _BATCH = 8
 
@@ -358,8 +370,12 @@ class _ForceFree(AbstractIsolator):
         return self.base.free_vibration_bounds(state)
 
 
-def _locate_batch(sub: _Attempt, valid, opts):
+def _locate_batch(sub: _Attempt, valid, opts, shared_motion=None):
     """`_locate` on a batch of lanes (leading axis; `valid`: real lanes).
+
+    `shared_motion`: the one motion of every lane (`sub.args.motion` is then
+    None), else None and each lane's motion is its own. A record is never
+    copied into the lanes: gathered per lane it cost more than the step.
 
     Most batches need less than every condition, and one `lax.cond` a batch
     picks a cheaper Newton loop (the same results, bit for bit):
@@ -372,19 +388,29 @@ def _locate_batch(sub: _Attempt, valid, opts):
       which every lane rocks evaluates neither.
     """
 
-    def locate(sub, unfired=()):
-        return jax.vmap(lambda a: _locate(a, opts, unfired))(sub)
+    def locate(sub, motion, shared, unfired=()):
+        def one(a, motion):
+            a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=_is_none)
+            return _locate(a, opts, unfired)
 
+        return jax.vmap(one, in_axes=(0, None if shared else 0))(sub, motion)
+
+    shared = shared_motion is not None
+    motion = shared_motion if shared else sub.args.motion
+    sub = eqx.tree_at(lambda s: s.args.motion, sub, None, is_leaf=_is_none)
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
     if sub.args.base.n_states == 0:  # a fixed base
-        rocking = eqx.tree_at(lambda s: s.args.motion, sub, _Still())
-        return jax.lax.cond(translating, lambda: locate(sub), lambda: locate(rocking))
+        return jax.lax.cond(
+            translating,
+            lambda: locate(sub, motion, shared),
+            lambda: locate(sub, _Still(), True),
+        )
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
     quiet = event_conditions(sub.args.base)._fields.index("quiet")
     return jax.lax.cond(
         translating,
-        lambda: locate(sub),
-        lambda: locate(rocking, unfired=(quiet,)),
+        lambda: locate(sub, motion, shared),
+        lambda: locate(rocking, motion, shared, unfired=(quiet,)),
     )
 
 
@@ -392,42 +418,64 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     """One step attempt of every lane (leading axis); returns the new carries
     and the attempts (`_Attempt`, before their events were located).
 
-    `block`, `base` and `motion` are batched as `in_axes` says. The root find
-    runs only on the lanes with an event, gathered in batches of `_BATCH` (in
-    most iterations a few of the lanes have one: one batch, and none without).
+    `block`, `base` and `motion` are batched as `in_axes` says. Most steps end
+    with no event and before their segment's end: their lanes only move on
+    (`move_on`, elementwise). The others (an event, a segment's end, a
+    failure) are gathered in batches of `_BATCH`, in which the root find and
+    `transition` run (in most iterations a few lanes: one batch, and none
+    without).
     """
     lanes = c.t.shape[0]
     a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
         c, block, base, motion, duration, opts
     )
-    event = a.event
+    # The lanes that move on, and those that do not (inactive lanes keep
+    # their carry).
+    y_end = where_lanes(a.keep, a.y1, a.y0)
+    moved = jax.vmap(move_on, in_axes=(0, 0, 0) + in_axes)(
+        c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion
+    )
+    moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
+    active = ~c.done & (c.segments < opts.max_segments)
+    new = where_lanes(a.moves_on, moved, c)
+    ends = active & ~a.moves_on
+    # One motion of every lane: kept out of the lanes' gathers.
+    shared = in_axes[2] is None
+    lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None) if shared else a
     batch = min(_BATCH, lanes)
     batches = -(-lanes // batch)
-    # The lanes with an event, in order, then `lanes` (none) up to whole batches.
-    count = jnp.sum(event)
-    slot = jnp.where(event, jnp.cumsum(event) - 1, batches * batch)
+    # The lanes that end, in order, then `lanes` (none) up to whole batches.
+    count = jnp.sum(ends)
+    slot = jnp.where(ends, jnp.cumsum(ends) - 1, batches * batch)
     order = (
         jnp.full(batches * batch, lanes).at[slot].set(jnp.arange(lanes), mode="drop")
     )
 
-    def locate_batch(state):
-        j, located = state
+    def end_batch(state):
+        j, new = state
         take = jax.lax.dynamic_slice(order, (j * batch,), (batch,))
         take = jnp.where(j * batch + jnp.arange(batch) < count, take, lanes)
-        sub = jax.tree_util.tree_map(lambda x: x[jnp.minimum(take, lanes - 1)], a)
-        found = _locate_batch(sub, take < lanes, opts)
-        located = jax.tree_util.tree_map(
-            lambda old, new: old.at[take].set(new, mode="drop"), located, found
+        index = jnp.minimum(take, lanes - 1)
+        sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
+        located = _locate_batch(sub, take < lanes, opts, motion if shared else None)
+        ended = jax.vmap(
+            _finish, in_axes=(0, 0, 0, 0, 0, None if shared else 0, None, None)
+        )(
+            sub_c,
+            sub,
+            located,
+            sub.args.block,
+            sub.args.base,
+            motion if shared else sub.args.motion,
+            duration,
+            opts,
         )
-        return j + 1, located
+        new = jax.tree_util.tree_map(
+            lambda old, x: old.at[take].set(x, mode="drop"), new, ended
+        )
+        return j + 1, new
 
-    # (time, state, converged, bracket's upper end, redo limit) of each lane's
-    # event.
-    located = (a.t1, a.y1, jnp.ones_like(event), a.t1, jnp.full_like(a.t1, jnp.inf))
-    _, located = jax.lax.while_loop(
-        lambda state: state[0] * batch < count, locate_batch, (0, located)
-    )
-    new = jax.vmap(_finish, in_axes=(0, 0, 0) + in_axes + (None, None))(
-        c, a, located, block, base, motion, duration, opts
+    _, new = jax.lax.while_loop(
+        lambda state: state[0] * batch < count, end_batch, (0, new)
     )
     return new, a

@@ -22,7 +22,14 @@ from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._labeled import ATTRS, Coordinates, coordinates, dataset, read, suffix, write
-from ._misc import as_float, broadcast_batch_shape, grid_axis, is_count, positive
+from ._misc import (
+    as_float,
+    broadcast_batch_shape,
+    grid_axis,
+    is_count,
+    positive,
+    where_lanes,
+)
 from ._model import Carry, check_base_and_motion, initial_carry, response
 from ._results import (
     ATOL,
@@ -45,15 +52,6 @@ _FIELDS = (
     "steps",
     "segments",
 )
-
-
-def _where_lanes(mask, new, old):
-    """Per lane (leading axis): `new` where `mask`, else `old` (pytrees)."""
-    return jax.tree_util.tree_map(
-        lambda n, o: jnp.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o),
-        new,
-        old,
-    )
 
 
 class _Lanes(eqx.Module):
@@ -148,7 +146,7 @@ def _map_chunk(
     def start(cell, per_lane):
         c = jax.vmap(initial_carry, in_axes=axes)(*inputs(per_lane))
         later = jax.tree_util.tree_map(lambda x: x[jnp.minimum(cell, n - 1)], shared)
-        c = _where_lanes(c.rocked | pilot, c, later)
+        c = where_lanes(c.rocked | pilot, c, later)
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
 
     closed = base.free_rocking_closed_form
@@ -185,7 +183,7 @@ def _map_chunk(
                 lambda s: (s.carry, s.finished, s.executed, s.useful),
                 s,
                 (
-                    _where_lanes(pilot & finished, s.carry, new),
+                    where_lanes(pilot & finished, s.carry, new),
                     finished,
                     s.executed + jnp.max(taken) * width,
                     s.useful + jnp.sum(taken),
@@ -208,13 +206,13 @@ def _map_chunk(
         cell = jnp.where(finished & (cell >= count), n, cell)
         fresh = gather(cell)
         return _Lanes(
-            carry=_where_lanes(finished, start(cell, fresh), c),
+            carry=where_lanes(finished, start(cell, fresh), c),
             cell=cell,
             queue=state.queue + jnp.sum(finished),
             out=out,
             executed=state.executed,
             useful=state.useful,
-            per_lane=_where_lanes(finished, fresh, state.per_lane),
+            per_lane=where_lanes(finished, fresh, state.per_lane),
             finished=finished,
         )
 

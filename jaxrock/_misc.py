@@ -223,3 +223,12 @@ def computed_once(tree):
         return x / jnp.sign(1.0 + jnp.abs(x))
 
     return jax.tree_util.tree_map(once, tree)
+
+
+def where_lanes(mask, new, old):
+    """Per lane (leading axis): `new` where `mask`, else `old` (pytrees)."""
+    return jax.tree_util.tree_map(
+        lambda n, o: jnp.where(mask.reshape((-1,) + (1,) * (o.ndim - 1)), n, o),
+        new,
+        old,
+    )

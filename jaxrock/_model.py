@@ -522,6 +522,55 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     return _merge_redo(c, new, active, redo, limit)
 
 
+def moves_on(c: Carry, t, failed, motion, duration, opts):
+    """Whether a flat-loop step of one solver step that ends at t with no event
+    only moves the state on: its lane is active, the solver did not fail
+    (`failed`), and the step ends before the segment's end and within
+    `max_steps`. `transition` then reduces to `move_on`."""
+    active = ~c.done & (c.segments < opts.max_segments)
+    cut = t < segment_end(c, motion, duration)[1]
+    return active & ~failed & cut & (c.segment_steps < opts.max_steps)
+
+
+def move_on(c: Carry, t, y, block, base, motion) -> Carry:
+    """`transition` after a step that `moves_on`: the new time and state (the
+    base's `at_transition` without a reversal), max |theta|, the step counts,
+    and whether nothing can happen any more (`quiet`). The next step `dt` is
+    the caller's."""
+    theta, theta_dot, base_state = y
+    if base_state is not None:
+        base_state = base.at_transition(base_state, jnp.asarray(False))
+    y = (theta, theta_dot, base_state)
+    args = Args(
+        block, base, motion, c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref
+    )
+    still = quiet(y, args) <= 0
+    kind = jnp.where(still, EventKind.QUIET, EventKind.END).astype(c.kind.dtype)
+    return eqx.tree_at(
+        lambda c: (
+            c.t,
+            c.y,
+            c.max_theta,
+            c.steps,
+            c.segment_steps,
+            c.done,
+            c.kind,
+            c.t_limit,
+        ),
+        c,
+        (
+            t,
+            y,
+            jnp.maximum(c.max_theta, jnp.abs(theta)),
+            c.steps + 1,
+            c.segment_steps + 1,
+            still,
+            kind,
+            jnp.where(t >= c.t_limit, jnp.inf, c.t_limit),
+        ),
+    )
+
+
 def response(c: Carry, block, opts) -> Response:
     status = jnp.where(c.done, c.status, Status.MAX_SEGMENTS)
     status = jnp.where(c.status != Status.SUCCESS, c.status, status)
