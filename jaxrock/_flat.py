@@ -380,12 +380,12 @@ class _ForceFree(AbstractIsolator):
         return self.base.free_vibration_bounds(state)
 
 
-def _locate_batch(sub: _Attempt, valid, opts, shared_motion=None):
+def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
     """`_locate` on a batch of lanes (leading axis; `valid`: real lanes).
 
-    `shared_motion`: the one motion of every lane (`sub.args.motion` is then
-    None), else None and each lane's motion is its own. A record is never
-    copied into the lanes: gathered per lane it cost more than the step.
+    `sub.args.motion` is None: the lanes' motion is `motion`, batched as
+    `motion_axes` says (None: one motion of every lane, a record, which is
+    never copied into the lanes: gathered per lane it cost more than the step).
 
     Most batches need less than every condition, and one `lax.cond` a batch
     picks a cheaper Newton loop (the same results, bit for bit):
@@ -398,29 +398,38 @@ def _locate_batch(sub: _Attempt, valid, opts, shared_motion=None):
       which every lane rocks evaluates neither.
     """
 
-    def locate(sub, motion, shared, unfired=()):
+    def locate(sub, motion, axes, unfired=()):
         def one(a, motion):
             a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=_is_none)
             return _locate(a, opts, unfired)
 
-        return jax.vmap(one, in_axes=(0, None if shared else 0))(sub, motion)
+        return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
-    shared = shared_motion is not None
-    motion = shared_motion if shared else sub.args.motion
-    sub = eqx.tree_at(lambda s: s.args.motion, sub, None, is_leaf=_is_none)
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
     if sub.args.base.n_states == 0:  # a fixed base
         return jax.lax.cond(
             translating,
-            lambda: locate(sub, motion, shared),
-            lambda: locate(sub, _Still(), True),
+            lambda: locate(sub, motion, motion_axes),
+            lambda: locate(sub, _Still(), None),
         )
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
     quiet = event_conditions(sub.args.base)._fields.index("quiet")
     return jax.lax.cond(
         translating,
-        lambda: locate(sub, motion, shared),
-        lambda: locate(rocking, motion, shared, unfired=(quiet,)),
+        lambda: locate(sub, motion, motion_axes),
+        lambda: locate(rocking, motion, motion_axes, unfired=(quiet,)),
+    )
+
+
+def _take_lanes(tree, axes, index):
+    """The lanes `index` of `tree`, batched as `axes` says (a vmap `in_axes`
+    prefix: 0 or None, or a pytree of them): unbatched leaves are kept."""
+    if axes is None:
+        return tree
+    if axes == 0:
+        return jax.tree_util.tree_map(lambda x: x[index], tree)
+    return jax.tree_util.tree_map(
+        lambda ax, x: x if ax is None else x[index], axes, tree, is_leaf=_is_none
     )
 
 
@@ -449,9 +458,9 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     active = ~c.done & (c.segments < opts.max_segments)
     new = where_lanes(a.moves_on, moved, c)
     ends = active & ~a.moves_on
-    # One motion of every lane: kept out of the lanes' gathers.
-    shared = in_axes[2] is None
-    lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None) if shared else a
+    # The lanes' motion is gathered as `in_axes` says (a record is not copied).
+    lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=_is_none)
+    motion_axes = in_axes[2]
     batch = min(_BATCH, lanes)
     batches = -(-lanes // batch)
     # The lanes that end, in order, then `lanes` (none) up to whole batches.
@@ -467,16 +476,15 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         take = jnp.where(j * batch + jnp.arange(batch) < count, take, lanes)
         index = jnp.minimum(take, lanes - 1)
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
-        located = _locate_batch(sub, take < lanes, opts, motion if shared else None)
-        ended = jax.vmap(
-            _finish, in_axes=(0, 0, 0, 0, 0, None if shared else 0, None, None)
-        )(
+        sub_motion = _take_lanes(motion, motion_axes, index)
+        located = _locate_batch(sub, take < lanes, opts, sub_motion, motion_axes)
+        ended = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, motion_axes, None, None))(
             sub_c,
             sub,
             located,
             sub.args.block,
             sub.args.base,
-            motion if shared else sub.args.motion,
+            sub_motion,
             duration,
             opts,
         )

@@ -122,18 +122,20 @@ def _map_chunk(
     # records and each cell's index into it, or one record for every cell.
     suite = motion_index is not None
     one_motion = not suite and motion.shared_by_cells
-    if one_motion:
+    if one_motion or suite:
         motion = motion.with_peaks()
-    axes = (0, 0, None if one_motion else 0)
+    # A suite's lanes read it in place: each lane a row (`Record.row`).
+    axes = (0, 0, motion.row_axes() if suite else None if one_motion else 0)
 
     def gather(cell):
         """The cells' block, base and motion, each with a lane axis (the motion
-        None for one motion of every lane, see `inputs`)."""
+        None for one motion of every lane, the suite's rows for a suite: see
+        `inputs`)."""
         cell = jnp.minimum(cell, n - 1)
         take = lambda tree: jax.tree_util.tree_map(lambda x: x[cell], tree)  # noqa: E731
         lane_motion = None
         if suite:
-            lane_motion = motion.select(motion_index[cell])
+            lane_motion = motion_index[cell]
         elif not one_motion:
             lane_motion = take(motion)
         return Block(slenderness[cell], size[cell]), take(base), lane_motion
@@ -141,6 +143,8 @@ def _map_chunk(
     def inputs(per_lane):
         """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
         block, lane_base, lane_motion = per_lane
+        if suite:
+            return block, lane_base, motion.row(lane_motion)
         return block, lane_base, motion if one_motion else lane_motion
 
     def start(cell, per_lane):

@@ -55,7 +55,10 @@ class Record(AbstractGroundMotion):
     dt: Float[Array, "*batch"] = parameter("dt", "s")
     length: Int[Array, "*batch"]
     # max |x_g''| over sample ranges [k, k + 2^l) (`with_peaks`), or None.
-    peaks: Float[Array, "levels n"] | None
+    peaks: Float[Array, "*batch levels n"] | None
+    # Inside a map under a suite: the suite's record this one reads (`row`),
+    # else None.
+    index: Int[Array, ""] | None
     shared_by_cells: ClassVar[bool] = True
     name: str | tuple | None = eqx.field(static=True)
     azimuth: float | tuple | None = eqx.field(static=True)
@@ -76,6 +79,7 @@ class Record(AbstractGroundMotion):
             name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
         self.name, self.azimuth, self.rsn = name, azimuth, rsn
         self.peaks = None
+        self.index = None
 
     def __check_init__(self):
         shape = np.shape(self.samples)
@@ -206,8 +210,48 @@ class Record(AbstractGroundMotion):
         static, so two labels would compile twice)."""
         out = Record(self.samples, self.dt, length=self.length)
         return eqx.tree_at(
-            lambda r: r.peaks, out, self.peaks, is_leaf=lambda x: x is None
+            lambda r: (r.peaks, r.index),
+            out,
+            (self.peaks, self.index),
+            is_leaf=lambda x: x is None,
         )
+
+    def row(self, index) -> "Record":
+        """Record `index` of the suite (its motion axes flattened, C order),
+        as a view that reads the suite's arrays in place: what the lanes of a
+        map under a suite take (`index` batched, the suite not), so that the
+        samples are never copied per lane. Only the engines' methods
+        (`acceleration`, `end_time`, `acceleration_bound`, `next_kink`) read
+        a view."""
+        n = self.samples.shape[-1]
+        flat = Record(self.samples.reshape(-1, n), self.dt.reshape(-1))
+        peaks = self.peaks
+        if peaks is not None:
+            peaks = peaks.reshape((-1,) + peaks.shape[-2:])
+        return eqx.tree_at(
+            lambda r: (r.length, r.peaks, r.index),
+            flat,
+            (self.length.reshape(-1), peaks, jnp.asarray(index)),
+            is_leaf=lambda x: x is None,
+        )
+
+    def row_axes(self) -> "Record":
+        """The `jax.vmap` in_axes of views from `row` with a lane axis: the
+        index batched (0), the suite's arrays not (None)."""
+        axes = jax.tree_util.tree_map(lambda _: None, self.row(0))
+        return eqx.tree_at(lambda r: r.index, axes, 0, is_leaf=lambda x: x is None)
+
+    def _read(self, array, *at):
+        """array[at] of this record: of the suite's row `index` for a view."""
+        return array[at] if self.index is None else array[(self.index,) + at]
+
+    @property
+    def _dt(self):
+        return self.dt if self.index is None else self.dt[self.index]
+
+    @property
+    def _length(self):
+        return self.length if self.index is None else self.length[self.index]
 
     # -- what the engines read ----------------------------------------------------
 
@@ -230,52 +274,61 @@ class Record(AbstractGroundMotion):
         )
 
     def acceleration(self, t):
-        a = self.samples
-        x = t / self.dt
-        k = jnp.clip(jnp.floor(x), 0, self.length - 2).astype(int)
+        dt, length = self._dt, self._length
+        x = t / dt
+        k = jnp.clip(jnp.floor(x), 0, length - 2).astype(int)
         frac = x - k
-        value = a[k] + (a[k + 1] - a[k]) * frac
-        return jnp.where((t >= 0) & (t <= (self.length - 1) * self.dt), value, 0.0)
+        a0, a1 = self._read(self.samples, k), self._read(self.samples, k + 1)
+        value = a0 + (a1 - a0) * frac
+        return jnp.where((t >= 0) & (t <= (length - 1) * dt), value, 0.0)
 
     @property
     def end_time(self):
-        return (self.length - 1) * self.dt
+        return (self._length - 1) * self._dt
 
     def acceleration_bound(self, t0, t1):
         """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
         largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
         at most `_BOUND_SAMPLES` samples after t0 (inf for a longer interval)."""
         n = self.samples.shape[-1]
+        dt = self._dt
         width = min(_BOUND_SAMPLES, n)
-        first = jnp.floor(t0 / self.dt) + 1.0  # the first sample after t0
+        first = jnp.floor(t0 / dt) + 1.0  # the first sample after t0
         start = jnp.clip(first, 0, n - width).astype(int)
-        near = jax.lax.dynamic_slice_in_dim(self.samples, start, width)
         index = start + jnp.arange(width)
-        inside = (index >= first) & (index * self.dt < t1) & (index < self.length)
+        near = self._read(self.samples, index)
+        inside = (index >= first) & (index * dt < t1) & (index < self._length)
         ends = jnp.maximum(
             jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
         )
         bound = jnp.maximum(ends, jnp.max(jnp.where(inside, jnp.abs(near), 0.0)))
-        covered = (t1 < (start + width) * self.dt) | (t0 > self.end_time)
+        covered = (t1 < (start + width) * dt) | (t0 > self.end_time)
         return jnp.where(covered, bound, jnp.inf)
 
     def with_peaks(self) -> "Record":
         """The record with its table of peaks (`peaks`): max |x_g''| over every
-        range of 2^l samples, l = 0, 1, ..., so that `next_kink` finds the
-        first sample above a level in log2(n) steps. Traceable; a single
-        record only (a suite keeps None)."""
-        if self.batch_shape:
-            return self
+        range of 2^l samples, l = 0, 1, ..., L - 1 (2^(L-1) >= n), so that
+        `next_kink` finds the first sample above a level in L reads. Of a
+        suite, one table a record, unless the tables would exceed
+        `_PEAKS_BYTES` (a suite's resting blocks then step through its
+        samples). Traceable."""
         level = jnp.abs(self.samples)
+        n = level.shape[-1]
+        if level.size * _levels(n) * level.dtype.itemsize > _PEAKS_BYTES:
+            return self
         table = [level]
         width = 1
-        while width < level.shape[0]:
-            shifted = jnp.concatenate([level[width:], jnp.zeros(width, level.dtype)])
+        while width < n:
+            pad = jnp.zeros(level.shape[:-1] + (width,), level.dtype)
+            shifted = jnp.concatenate([level[..., width:], pad], axis=-1)
             level = jnp.maximum(level, shifted)
             table.append(level)
             width *= 2
         return eqx.tree_at(
-            lambda r: r.peaks, self, jnp.stack(table), is_leaf=lambda x: x is None
+            lambda r: r.peaks,
+            self,
+            jnp.stack(table, axis=-2),
+            is_leaf=lambda x: x is None,
         )
 
     def next_kink(self, t, quiet_below=None):
@@ -288,18 +341,21 @@ class Record(AbstractGroundMotion):
         is later: a block at rest on a fixed base then skips to just before
         its next uplift in one step.
         """
-        k = jnp.floor(t / self.dt)
-        times = [self.dt * (k + i) for i in (0.0, 1.0, 2.0)]
+        dt = self._dt
+        k = jnp.floor(t / dt)
+        times = [dt * (k + i) for i in (0.0, 1.0, 2.0)]
         index = jnp.where(times[0] > t, k, jnp.where(times[1] > t, k + 1.0, k + 2.0))
         kink = jnp.where(
             times[0] > t, times[0], jnp.where(times[1] > t, times[1], times[2])
         )
         if quiet_below is not None and self.peaks is not None:
-            first = _first_at_least(self.peaks, index.astype(int), quiet_below)
-            later = jnp.minimum(first - 1, self.length - 1).astype(index.dtype)
-            kink = jnp.where(later > index, self.dt * later, kink)
+            peak = lambda width_log, k: self._read(self.peaks, width_log, k)  # noqa: E731
+            n = self.samples.shape[-1]
+            first = _first_at_least(peak, n, index.astype(int), quiet_below)
+            later = jnp.minimum(first - 1, self._length - 1).astype(index.dtype)
+            kink = jnp.where(later > index, dt * later, kink)
             index = jnp.maximum(index, later)
-        return jnp.where(index <= self.length - 1, kink, jnp.inf)
+        return jnp.where(index <= self._length - 1, kink, jnp.inf)
 
     # -- intensity measures -----------------------------------------------------
 
@@ -329,16 +385,23 @@ class Record(AbstractGroundMotion):
 
 # Samples `Record.acceleration_bound` reads at most.
 _BOUND_SAMPLES = 16
+# The largest table of peaks `Record.with_peaks` builds (bytes): 28 records of
+# 18,000 samples take 62 MB.
+_PEAKS_BYTES = 2**28
 
 
-def _first_at_least(peaks, start, level):
+def _levels(n: int) -> int:
+    """L, the levels of the table of peaks of n samples: 2^(L-1) >= n."""
+    return max(1, (n - 1).bit_length() + 1)
+
+
+def _first_at_least(peak, n, start, level):
     """The first sample index k >= start with |x_g''| >= level (n if none),
-    by binary lifting on the table of peaks (peaks[l, k]: the max over
-    [k, k + 2^l))."""
-    n = peaks.shape[1]
+    by binary lifting on the table of peaks (`peak(l, k)`: the max over
+    [k, k + 2^l) of a record of n samples)."""
     k = start
-    for width_log in reversed(range(peaks.shape[0])):
+    for width_log in reversed(range(_levels(n))):
         width = 1 << width_log
-        below = peaks[width_log, jnp.clip(k, 0, n - 1)] < level
+        below = peak(width_log, jnp.clip(k, 0, n - 1)) < level
         k = jnp.where(below & (k < n), k + width, k)
     return jnp.minimum(k, n)

@@ -31,9 +31,9 @@ def records():
 )
 def test_a_suite_map_equals_each_records_own_map(records, base):
     """Records of other lengths and time steps in one compiled map: padding
-    changes no field of any cell. On a fixed base a single record's map skips
-    the samples where a block at rest cannot uplift (a suite steps through
-    them): the same results in fewer steps."""
+    changes no field of any cell, the steps included (on a fixed base, a
+    block at rest skips the samples where it cannot uplift, from each
+    record's own table of peaks)."""
     suite = jr.Record.stack(records)
     duration = float(np.max(suite.end_time)) + 5.0
     bm = jr.behavior_map(LAM, SIZE, base, suite, progress=False)
@@ -42,10 +42,6 @@ def test_a_suite_map_equals_each_records_own_map(records, base):
     for i, record in enumerate(records):
         alone = jr.behavior_map(LAM, SIZE, base, record, duration=duration)
         for f in FIELDS:
-            if f == "steps" and base.n_states == 0:
-                assert np.all(alone.steps <= bm.steps[i])
-                assert alone.steps.sum() < 0.8 * bm.steps[i].sum()
-                continue
             np.testing.assert_array_equal(
                 getattr(bm, f)[i], getattr(alone, f), err_msg=f"{f}, record {i}"
             )
