@@ -514,8 +514,11 @@ class BehaviorMap(eqx.Module):
             if self.coordinates is None
             else self.coordinates.to_json(),
         }
+        # Strict JSON: NaN as null.
+        meta = {k: None if v != v else v for k, v in meta.items()}
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
-        np.savez_compressed(path, metadata=np.array(json.dumps(meta)), **arrays)
+        metadata = json.dumps(meta, allow_nan=False)
+        np.savez_compressed(path, metadata=np.array(metadata), **arrays)
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
@@ -566,19 +569,41 @@ class BehaviorMap(eqx.Module):
         if not isinstance(meta, dict) or not {"base", "motion", "seconds"} <= set(meta):
             raise ValueError("its metadata lacks base, motion or seconds")
         _check_map_arrays(arrays)
-        out = {
-            k: meta[k]
-            for k in ("base", "motion", "seconds", "lane_efficiency")
-            if k in meta
-        }
-        if isinstance(meta.get("motion_names"), list):
-            out["motion_names"] = tuple(meta["motion_names"])
+        out = _metadata(meta)
         if isinstance(meta.get("coordinates"), dict):
             c = Coordinates.from_json(meta["coordinates"])
             if len(c.dims) != arrays["outcome"].ndim - 2:
                 raise ValueError(f"coordinates name {len(c.dims)} leading axes")
             out["coordinates"] = c
         return cls(**arrays, **out)
+
+
+def _metadata(meta: dict) -> dict:
+    """The fields of a map file's metadata: base and motion (strings),
+    seconds and lane_efficiency (numbers; null: NaN), motion_names (a list
+    of strings or nulls); `ValueError` naming a field of another type."""
+    out = {}
+    for k in ("base", "motion"):
+        if not isinstance(meta[k], str):
+            raise ValueError(f"its metadata's {k} is not a string: {meta[k]!r}")
+        out[k] = meta[k]
+    for k in ("seconds", "lane_efficiency"):
+        v = meta.get(k, float("nan"))
+        v = float("nan") if v is None else v
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"its metadata's {k} is not a number: {v!r}")
+        out[k] = float(v)
+    names = meta.get("motion_names")
+    if names is not None:
+        named = isinstance(names, list) and all(
+            n is None or isinstance(n, str) for n in names
+        )
+        if not named:
+            raise ValueError(
+                f"its metadata's motion_names is not a list of strings: {names!r}"
+            )
+        out["motion_names"] = tuple(names)
+    return out
 
 
 def _check_map_arrays(arrays: dict) -> None:

@@ -100,7 +100,7 @@ def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
     np.testing.assert_allclose(again.max_rotation, linear_map.max_rotation, rtol=1e-9)
 
 
-def _saved_map(tmp_path, **changes):
+def _saved_map(tmp_path, meta=None, **changes):
     arrays = dict(
         slenderness=np.array([2.0, 3.0]),
         size=np.array([1.0]),
@@ -114,7 +114,7 @@ def _saved_map(tmp_path, **changes):
         segments=np.zeros((2, 1), dtype=int),
     )
     arrays.update(changes)
-    meta = json.dumps(dict(base="fixed base", motion="m", seconds=0.0))
+    meta = json.dumps(dict(base="fixed base", motion="m", seconds=0.0) | (meta or {}))
     path = tmp_path / "map.npz"
     np.savez(path, metadata=np.array(meta), **arrays)
     return path
@@ -156,6 +156,38 @@ def test_a_file_without_coordinates_loads_and_converts(tmp_path):
 def test_load_refuses_inconsistent_arrays(tmp_path, changes, message):
     with pytest.raises(ValueError, match=message):
         jr.BehaviorMap.load(_saved_map(tmp_path, **changes))
+
+
+@pytest.mark.parametrize(
+    "meta, message",
+    [
+        (dict(base=1), "base is not a string"),
+        (dict(motion=["m"]), "motion is not a string"),
+        (dict(seconds="2"), "seconds is not a number"),
+        (dict(lane_efficiency=True), "lane_efficiency is not a number"),
+        (dict(motion_names=["a", 3]), "motion_names is not a list of strings"),
+    ],
+)
+def test_load_refuses_metadata_of_other_types(tmp_path, meta, message):
+    with pytest.raises(ValueError, match=message):
+        jr.BehaviorMap.load(_saved_map(tmp_path, meta))
+
+
+def test_map_files_hold_strict_json_and_read_back_their_types(tmp_path):
+    """NaN is written as null (strict JSON) and read back as NaN; numbers
+    read as floats, names as a tuple."""
+    meta = dict(seconds=3, lane_efficiency=None, motion_names=["a", None])
+    bm = jr.BehaviorMap.load(_saved_map(tmp_path, meta))
+    assert isinstance(bm.seconds, float) and np.isnan(bm.lane_efficiency)
+    assert bm.motion_names == ("a", None)
+    again = tmp_path / "again.npz"
+    bm.save(again)
+    with np.load(again) as data:
+        text = str(data["metadata"])
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in {text}"))
+    back = jr.BehaviorMap.load(again)
+    assert back.seconds == 3.0 and np.isnan(back.lane_efficiency)
+    assert back.motion_names == ("a", None)
 
 
 def test_load_refuses_corrupt_truncated_and_foreign_files(tmp_path):
