@@ -116,73 +116,147 @@ def _map_chunk(
     Returns the responses and carries (one per cell), the lane-steps executed
     (iterations times lanes) and those that advanced an analysis.
     """
-    n = slenderness.shape[0]
+    chunk = _Chunk(
+        slenderness, size, base, motion, motion_index, shared, duration, opts, pilot
+    )
+    n = chunk.n
     width = min(width, n)
-    # The motion: per cell (its parameters carry the cell axis), one suite of
-    # records and each cell's index into it, or one record for every cell.
-    suite = motion_index is not None
-    one_motion = not suite and motion.shared_by_cells
-    if one_motion or suite:
-        motion = motion.with_peaks()
-    # A suite's lanes read it in place: each lane a row (`Record.row`).
-    axes = (0, 0, motion.row_axes() if suite else None if one_motion else 0)
+    cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
+    per_lane0 = chunk.gather(cell0)
+    c0 = chunk.start(cell0, per_lane0)
+    zero = jnp.asarray(0)
+    state = _Lanes(
+        carry=c0,
+        cell=cell0,
+        queue=jnp.asarray(width),
+        out=jax.tree_util.tree_map(
+            lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0
+        ),
+        executed=zero,
+        useful=zero,
+        per_lane=per_lane0,
+        finished=jnp.zeros_like(cell0, dtype=bool),
+    )
+    state = jax.lax.while_loop(
+        lambda s: jnp.any(s.cell < n), lambda s: chunk.refill(s, count), state
+    )
+    return (*chunk.responses(state.out), state.executed, state.useful)
 
-    def gather(cell):
+
+class _Chunk(eqx.Module):
+    """A chunk's cells and what its lanes share (the arguments of `_map_chunk`
+    but `count` and the lane width), and the steps of its loop.
+
+    The motion is one of three: per cell (its parameters carry the cell axis),
+    one record for every cell (`shared_by_cells`), or a suite of records with
+    `motion_index` giving each cell's record; the lanes read a record or a
+    suite in place (a suite's lane holds its row, `Record.row`).
+    """
+
+    slenderness: jax.Array
+    size: jax.Array
+    base: AbstractIsolator
+    motion: AbstractGroundMotion
+    motion_index: jax.Array | None
+    shared: Carry
+    duration: jax.Array
+    opts: SolverOptions
+    pilot: jax.Array
+
+    def __init__(
+        self,
+        slenderness,
+        size,
+        base,
+        motion,
+        motion_index,
+        shared,
+        duration,
+        opts,
+        pilot,
+    ):
+        self.slenderness, self.size, self.base = slenderness, size, base
+        self.motion_index, self.shared = motion_index, shared
+        self.duration, self.opts, self.pilot = duration, opts, pilot
+        single = motion_index is None and motion.shared_by_cells
+        self.motion = motion.with_peaks() if single or self.suite else motion
+
+    @property
+    def n(self) -> int:
+        return self.slenderness.shape[0]
+
+    @property
+    def suite(self) -> bool:
+        return self.motion_index is not None
+
+    @property
+    def one_motion(self) -> bool:
+        return not self.suite and self.motion.shared_by_cells
+
+    @property
+    def axes(self) -> tuple:
+        """The `jax.vmap` in_axes of a lane's (block, base, motion)."""
+        if self.suite:
+            return 0, 0, self.motion.row_axes()
+        return 0, 0, None if self.one_motion else 0
+
+    def gather(self, cell):
         """The cells' block, base and motion, each with a lane axis (the motion
         None for one motion of every lane, the suite's rows for a suite: see
         `inputs`)."""
-        cell = jnp.minimum(cell, n - 1)
+        cell = jnp.minimum(cell, self.n - 1)
         take = lambda tree: jax.tree_util.tree_map(lambda x: x[cell], tree)  # noqa: E731
         lane_motion = None
-        if suite:
-            lane_motion = motion_index[cell]
-        elif not one_motion:
-            lane_motion = take(motion)
-        return Block(slenderness[cell], size[cell]), take(base), lane_motion
+        if self.suite:
+            lane_motion = self.motion_index[cell]
+        elif not self.one_motion:
+            lane_motion = take(self.motion)
+        return (
+            Block(self.slenderness[cell], self.size[cell]),
+            take(self.base),
+            lane_motion,
+        )
 
-    def inputs(per_lane):
+    def inputs(self, per_lane):
         """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
         block, lane_base, lane_motion = per_lane
-        if suite:
-            return block, lane_base, motion.row(lane_motion)
-        return block, lane_base, motion if one_motion else lane_motion
+        if self.suite:
+            return block, lane_base, self.motion.row(lane_motion)
+        return block, lane_base, self.motion if self.one_motion else lane_motion
 
-    def start(cell, per_lane):
-        c = jax.vmap(initial_carry, in_axes=axes)(*inputs(per_lane))
-        later = jax.tree_util.tree_map(lambda x: x[jnp.minimum(cell, n - 1)], shared)
-        c = where_lanes(c.rocked | pilot, c, later)
-        return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= n))  # n: idle
+    def start(self, cell, per_lane):
+        """The lanes' first carries: from t = 0 (pilots, or a cell that uplifts
+        at once) or from their pilot's carry (`shared`); idle lanes done."""
+        c = jax.vmap(initial_carry, in_axes=self.axes)(*self.inputs(per_lane))
+        index = jnp.minimum(cell, self.n - 1)
+        later = jax.tree_util.tree_map(lambda x: x[index], self.shared)
+        c = where_lanes(c.rocked | self.pilot, c, later)
+        return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= self.n))
 
-    closed = base.free_rocking_closed_form
-
-    def closed_form(c, block, lane_motion):
+    def closed_form(self, c, block, lane_motion):
         """The lanes finished in closed form (`_free.py`): free rocking on a
         fixed base once the ground is still."""
-        if not closed:
+        if not self.base.free_rocking_closed_form:
             return jnp.zeros_like(c.done)
         return free_rocking_ready(c, block, lane_motion.end_time)  # elementwise
 
-    cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
-    per_lane0 = gather(cell0)
-    c0 = start(cell0, per_lane0)
-    out = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0)
-
-    def steps(state: _Lanes) -> _Lanes:
+    def steps(self, state: _Lanes) -> _Lanes:
         """Step every lane until one or more finish: the lanes whose analysis is
         done, or with `pilot` whose shared phase ends (these keep their carry
         from before that attempt). No cell changes here, so the lanes' inputs
         are gathered once (in `refill`), not at every step."""
-        block, lane_base, lane_motion = inputs(state.per_lane)
+        block, lane_base, lane_motion = self.inputs(state.per_lane)
+        opts, pilot, width = self.opts, self.pilot, state.cell.shape[0]
 
         def body(s: _Lanes) -> _Lanes:
             new, a = flat_step(
-                s.carry, block, lane_base, lane_motion, duration, opts, axes
+                s.carry, block, lane_base, lane_motion, self.duration, opts, self.axes
             )
             taken = new.steps - s.carry.steps
             ended = new.done | (new.segments >= opts.max_segments)
-            ended = ended | closed_form(new, block, lane_motion)
+            ended = ended | self.closed_form(new, block, lane_motion)
             leaves = new.rocked | (a.t1 >= lane_motion.end_time)  # the shared phase
-            finished = (s.cell < n) & (ended | (pilot & leaves))
+            finished = (s.cell < self.n) & (ended | (pilot & leaves))
             return eqx.tree_at(
                 lambda s: (s.carry, s.finished, s.executed, s.useful),
                 s,
@@ -197,20 +271,20 @@ def _map_chunk(
         state = eqx.tree_at(lambda s: s.finished, state, jnp.zeros_like(state.finished))
         return jax.lax.while_loop(lambda s: ~jnp.any(s.finished), body, state)
 
-    def refill(state: _Lanes) -> _Lanes:
+    def refill(self, state: _Lanes, count) -> _Lanes:
         """Steps until lanes finish; they write their results and take the
-        queue's next cells."""
-        state = steps(state)
+        queue's next cells (of the first `count`)."""
+        state = self.steps(state)
         finished, cell, c = state.finished, state.cell, state.carry
-        index = jnp.where(finished, cell, n)  # other lanes write nowhere
+        index = jnp.where(finished, cell, self.n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
             lambda o, r: o.at[index].set(r, mode="drop"), state.out, c
         )
         cell = jnp.where(finished, state.queue + jnp.cumsum(finished) - 1, cell)
-        cell = jnp.where(finished & (cell >= count), n, cell)
-        fresh = gather(cell)
+        cell = jnp.where(finished & (cell >= count), self.n, cell)
+        fresh = self.gather(cell)
         return _Lanes(
-            carry=where_lanes(finished, start(cell, fresh), c),
+            carry=where_lanes(finished, self.start(cell, fresh), c),
             cell=cell,
             queue=state.queue + jnp.sum(finished),
             out=out,
@@ -220,29 +294,20 @@ def _map_chunk(
             finished=finished,
         )
 
-    zero = jnp.asarray(0)
-    state = _Lanes(
-        carry=c0,
-        cell=cell0,
-        queue=jnp.asarray(width),
-        out=out,
-        executed=zero,
-        useful=zero,
-        per_lane=per_lane0,
-        finished=jnp.zeros_like(cell0, dtype=bool),
-    )
-    state = jax.lax.while_loop(lambda s: jnp.any(s.cell < n), refill, state)
-    carries, executed, useful = state.out, state.executed, state.useful
-    blocks = Block(slenderness, size)
-    final = carries
-    if closed:
-        # The lanes that `closed_form` ended: the others are done or out of
-        # segments (or pilots, whose responses are not used).
-        ready = ~carries.done & (carries.segments < opts.max_segments) & ~pilot
-        ready = ready & (carries.phase != Phase.TRANSLATION)
-        final = free_rocking(carries, blocks, base, duration, opts, ready)
-    responses = jax.vmap(response, in_axes=(0, 0, None))(final, blocks, opts)
-    return responses, carries, executed, useful
+    def responses(self, carries: Carry):
+        """The cells' responses and carries. On a fixed base, the lanes that
+        `closed_form` ended (not done, within their segments, rocking; not
+        pilots, whose responses are not used) finish in closed form."""
+        blocks = Block(self.slenderness, self.size)
+        final = carries
+        if self.base.free_rocking_closed_form:
+            ready = ~carries.done & (carries.segments < self.opts.max_segments)
+            ready = ready & ~self.pilot & (carries.phase != Phase.TRANSLATION)
+            final = free_rocking(
+                carries, blocks, self.base, self.duration, self.opts, ready
+            )
+        responses = jax.vmap(response, in_axes=(0, 0, None))(final, blocks, self.opts)
+        return responses, carries
 
 
 class BehaviorMap(eqx.Module):
