@@ -346,27 +346,25 @@ def tune_isolator(
     """
     _check_objective(motions, capacity, penalty)
     names = _check_design(init, bounds, steps, learning_rate)
-    lo = {k: float(bounds[k][0]) for k in names}
-    width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
-    opts = SolverOptions(rtol=rtol, atol=atol)
+    scale = _Scaling(names, bounds)
     problem = (
         blocks,
         motions,
         jnp.asarray(capacity, dtype=float),
         jnp.asarray(penalty, dtype=float),
-        opts,
+        SolverOptions(rtol=rtol, atol=atol),
     )
 
     def base_at(x):
-        return make_base({k: lo[k] + width[k] * x[k] for k in names})
+        return make_base(scale.params(x))
 
-    base = base_at({k: (init[k] - lo[k]) / width[k] for k in names})
+    x = scale.unit(init)
+    base = base_at(x)
     if not isinstance(base, AbstractIsolator) or base.n_states == 0:
         raise ValueError(
             "`make_base` must return an isolated base (LinearIsolator or "
             f"FrictionPendulum) built from the parameters, got {type(base).__name__}"
         )
-
     units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
 
     def value_and_grad(x):
@@ -378,16 +376,42 @@ def tune_isolator(
         return value, {k: grad[i] for i, k in enumerate(names)}, r
 
     optimizer = optimizer or optax.adam(learning_rate)
-    x = {k: jnp.asarray((init[k] - lo[k]) / width[k]) for k in names}
+    rows = _descend(value_and_grad, optimizer, x, steps, scale)
+    return _design_result(rows, names)
+
+
+class _Scaling:
+    """The design variables scaled to [0, 1] by their bounds."""
+
+    def __init__(self, names, bounds):
+        self.names = names
+        self.lo = {k: float(bounds[k][0]) for k in names}
+        self.width = {k: float(bounds[k][1]) - float(bounds[k][0]) for k in names}
+
+    def params(self, x) -> dict:
+        """The parameters (their units) at the scaled point x."""
+        return {k: self.lo[k] + self.width[k] * x[k] for k in self.names}
+
+    def unit(self, params) -> dict:
+        """The scaled point of the parameters."""
+        return {
+            k: jnp.asarray((params[k] - self.lo[k]) / self.width[k]) for k in self.names
+        }
+
+
+def _descend(value_and_grad, optimizer, x, steps: int, scale: _Scaling) -> list:
+    """`steps` projected updates of the scaled point x from `optimizer`;
+    returns a row per evaluation: the parameters, J, dJ/d parameter, and the
+    responses' max rotation, max base displacement and overturning."""
     state = optimizer.init(x)
     rows = []
     for i in range(steps + 1):
         value, grad, r = value_and_grad(x)
         rows.append(
             (
-                {k: lo[k] + width[k] * float(x[k]) for k in names},
+                {k: float(v) for k, v in scale.params(x).items()},
                 float(value),
-                {k: float(grad[k]) / width[k] for k in names},
+                {k: float(grad[k]) / scale.width[k] for k in scale.names},
                 np.asarray(r.max_rotation),
                 np.asarray(r.max_base_displacement),
                 np.asarray(r.outcome) == Outcome.OVERTURNED,
@@ -399,8 +423,12 @@ def tune_isolator(
         x = jax.tree_util.tree_map(
             lambda v: jnp.clip(v, 0.0, 1.0), optax.apply_updates(x, updates)
         )
+    return rows
+
+
+def _design_result(rows: list, names) -> DesignResult:
+    """The `DesignResult` of `_descend`'s rows; `best`: the lowest J's."""
     values = np.array([row[1] for row in rows])
-    best = rows[int(np.argmin(values))][0]
     return DesignResult(
         params={k: np.array([row[0][k] for row in rows]) for k in names},
         objective=values,
@@ -408,5 +436,5 @@ def tune_isolator(
         max_rotation=np.stack([row[3] for row in rows]),
         max_base_displacement=np.stack([row[4] for row in rows]),
         overturned=np.stack([row[5] for row in rows]),
-        best=best,
+        best=rows[int(np.argmin(values))][0],
     )

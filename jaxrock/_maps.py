@@ -117,7 +117,15 @@ def _map_chunk(
     (iterations times lanes) and those that advanced an analysis.
     """
     chunk = _Chunk(
-        slenderness, size, base, motion, motion_index, shared, duration, opts, pilot
+        slenderness,
+        size,
+        base,
+        motion.with_peaks(),
+        motion_index,
+        shared,
+        duration,
+        opts,
+        pilot,
     )
     n = chunk.n
     width = min(width, n)
@@ -150,7 +158,8 @@ class _Chunk(eqx.Module):
     The motion is one of three: per cell (its parameters carry the cell axis),
     one record for every cell (`shared_by_cells`), or a suite of records with
     `motion_index` giving each cell's record; the lanes read a record or a
-    suite in place (a suite's lane holds its row, `Record.row`).
+    suite in place (a suite's lane holds its row, `Record.row`), with its
+    table of peaks (`with_peaks`).
     """
 
     slenderness: jax.Array
@@ -162,24 +171,6 @@ class _Chunk(eqx.Module):
     duration: jax.Array
     opts: SolverOptions
     pilot: jax.Array
-
-    def __init__(
-        self,
-        slenderness,
-        size,
-        base,
-        motion,
-        motion_index,
-        shared,
-        duration,
-        opts,
-        pilot,
-    ):
-        self.slenderness, self.size, self.base = slenderness, size, base
-        self.motion_index, self.shared = motion_index, shared
-        self.duration, self.opts, self.pilot = duration, opts, pilot
-        single = motion_index is None and motion.shared_by_cells
-        self.motion = motion.with_peaks() if single or self.suite else motion
 
     @property
     def n(self) -> int:
@@ -1128,37 +1119,47 @@ def behavior_map(
 
     t = time.perf_counter()
     results = {} if store is None else store.chunks(chunks)  # from an earlier run
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(
-            total=chunks, initial=len(results), desc="behavior map", unit="chunk"
-        )
+    bar = _progress_bar(progress, chunks, len(results))
     useful = executed = 0
     if len(results) < chunks:
         starts, useful, executed = _run_pilots(runner, grid, chunk)
-        # Cells by start time (the most work first), dealt to the chunks in
-        # turn: chunks of equal work, and short analyses fill each one's tail.
-        # A store keeps its first run's order: a rerun whose pilots differ in
-        # their last bits (other hardware) deals the same chunks.
-        order = np.argsort(starts.t, kind="stable")
-        if store is not None:
-            order = store.dealt(order)
-        cells = {k: order[k::chunks] for k in range(chunks) if k not in results}
-
-        def finished(k, out):
-            """Pass 2's chunk k: its cells ("index") join its results."""
-            out["index"] = cells[k]
-            if store is not None:
-                store.write(k, out)
-
-        results |= runner.run(cells, grid.cell_inputs, starts, False, finished, bar)
+        results |= _run_cells(runner, grid, starts, chunks, results, store, bar)
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - t
     results = [results[k] for k in range(chunks)]
     return _assemble(grid, results, seconds, useful, executed)
+
+
+def _progress_bar(progress: bool, chunks: int, done: int):
+    """A tqdm bar over the chunks (`done` of them from a store), or None."""
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=chunks, initial=done, desc="behavior map", unit="chunk")
+
+
+def _run_cells(runner: _ChunkRunner, grid: _Grid, starts, chunks, done, store, bar):
+    """Pass 2: the cells from their starts (`_run_pilots`), dealt to `chunks`
+    chunks, but those `done` (from a store); each finished chunk goes to the
+    store. Returns the new chunks' results."""
+    # Cells by start time (the most work first), dealt to the chunks in turn:
+    # chunks of equal work, and short analyses fill each one's tail. A store
+    # keeps its first run's order: a rerun whose pilots differ in their last
+    # bits (other hardware) deals the same chunks.
+    order = np.argsort(starts.t, kind="stable")
+    if store is not None:
+        order = store.dealt(order)
+    cells = {k: order[k::chunks] for k in range(chunks) if k not in done}
+
+    def finished(k, out):
+        """Chunk k: its cells ("index") join its results."""
+        out["index"] = cells[k]
+        if store is not None:
+            store.write(k, out)
+
+    return runner.run(cells, grid.cell_inputs, starts, False, finished, bar)
 
 
 def _assemble(grid: _Grid, results, seconds, useful, executed) -> BehaviorMap:

@@ -714,16 +714,23 @@ def _run_spectrum(a) -> int:
     return 0
 
 
-def _run_simulate(a) -> int:
+def _analysis(a, one_motion: bool = False):
+    """What simulate, fragility and map check before JAX is imported (--out,
+    the motion's files and names; with `one_motion`, a single motion), then
+    (the figure's path, the motion, the base, the motion's name)."""
     out = _check_out(a.out)
     _check_motion(a)
-    if a.suite or len(a.record or ()) > 1:
+    if one_motion and (a.suite or len(a.record or ()) > 1):
         raise ValueError("simulate takes one motion: one --record or a --pulse")
     _use_agg()
+    return (out, *_inputs(a))
+
+
+def _run_simulate(a) -> int:
+    out, motion, base, _ = _analysis(a, one_motion=True)
     import jaxrock as jr
     from jaxrock import plot
 
-    motion, base, _ = _inputs(a)
     r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
     print(r.summary())
     _save(plot.response(r), out)
@@ -731,13 +738,10 @@ def _run_simulate(a) -> int:
 
 
 def _run_fragility(a) -> int:
-    out = _check_out(a.out)
-    _check_motion(a)
-    _use_agg()
+    out, motion, base, name = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot
 
-    motion, base, name = _inputs(a)
     frag = jr.fragility(
         a.slenderness,
         a.size,
@@ -763,13 +767,10 @@ def _run_fragility(a) -> int:
 
 
 def _run_map(a) -> int:
-    out = _check_out(a.out)
-    _check_motion(a)
-    _use_agg()
+    out, motion, base, name = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot
 
-    motion, base, name = _inputs(a)
     bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
     maps = []
     with _executor(a.scheduler) as executor:
