@@ -24,7 +24,7 @@ import numpy as np
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractFrictionPendulum, AbstractIsolator
+from ._isolators import AbstractIsolator
 from ._misc import computed_once, where_lanes
 from ._model import (
     event_conditions,
@@ -275,9 +275,9 @@ def _locate(a: _Attempt, opts, unfired=()):
         # XLA recomputes earlier iterations inside later ones).
         return tuple(computed_once(jnp.stack([s, lower, upper, step])))
 
-    # Unrolled where the conditions are costly (a friction pendulum's force, z
-    # in closed form): in a loop its record map ran 22% slower.
-    unroll = True if isinstance(a.args.base, AbstractFrictionPendulum) else 1
+    # Unrolled where the conditions read a hysteretic force (a friction
+    # pendulum's z, costly): in a loop its record map ran 22% slower.
+    unroll = True if a.args.base.hysteretic_state else 1
     s, lower, upper, step = jax.lax.fori_loop(
         0, _NEWTON, iteration, (s, lower, upper, step), unroll=unroll
     )
