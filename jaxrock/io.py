@@ -95,6 +95,120 @@ def _read_text(path) -> tuple[str, str]:
     return name, text
 
 
+def _refuse_other_series_suffix(name: str) -> None:
+    """Raises ValueError when the file's suffix marks a velocity or displacement."""
+    if os.path.splitext(name)[1].upper() in (".VT2", ".DT2"):
+        raise ValueError(
+            f"{name!r} is a velocity or displacement file (suffix "
+            f"{os.path.splitext(name)[1]!r}): read_at2 reads acceleration only"
+        )
+
+
+def _split_lines(text: str) -> list[str]:
+    """The text's lines, split at LF, CRLF or CR."""
+    # Not `splitlines`: it also splits at U+0085, which a Latin-1 byte 0x85
+    # decodes to, and line numbers would then be off.
+    return re.split(r"\r\n|\r|\n", text)
+
+
+def _npts_dt_line_index(lines: list[str], name: str) -> int:
+    """The index of the `NPTS`/`DT` line among the first 10 lines."""
+    for i, line in enumerate(lines[:10]):
+        if re.search(r"NPTS", line, re.I) and re.search(r"\bDT\b", line, re.I):
+            return i
+    raise ValueError(
+        f"{name!r} is not an AT2 file: no 'NPTS=..., DT=...' or "
+        "'n dt NPTS, DT' line in its first 10 lines"
+    )
+
+
+def _match_npts_dt(line: str, where: str) -> re.Match:
+    """The match of the new or old header pattern on the `NPTS`/`DT` line."""
+    match = _NEW_HEADER.search(line) or _OLD_HEADER.search(line)
+    if not match:
+        raise ValueError(f"{where}: cannot read NPTS and DT from {line.strip()!r}")
+    return match
+
+
+def _acceleration_factor(header: list[str], name: str) -> float:
+    """The factor that takes the header's unit to m/s^2 (GRAVITY without one)."""
+    factor = GRAVITY
+    units_found = False
+    for k, line in enumerate(header):
+        if _NOT_ACCELERATION.search(line):
+            raise ValueError(
+                f"{name!r}, line {k + 1}: the header declares a velocity or "
+                f"displacement series ({line.strip()!r}): read_at2 reads "
+                "acceleration only"
+            )
+        unit = None if units_found else _unit_text(line)
+        if unit is not None:
+            units_found = True
+            factor = _to_m_s2(unit)
+            if factor is None:
+                raise ValueError(
+                    f"{name!r}, line {k + 1}: unit {unit!r} is not recognised "
+                    "(read_at2 reads g, cm/s^2 (CM/S/S, GAL) or m/s^2 (M/S/S))"
+                )
+    return factor
+
+
+def _npts_and_dt(match: re.Match, where: str) -> tuple[int, float]:
+    """NPTS and DT (s) from the header match, checked for unit and range."""
+    npts, dt_text, dt_unit = match.group(1), match.group(2), match.group(3) or ""
+    npts = int(npts)
+    if dt_unit.upper().rstrip(".") not in _SECONDS:
+        raise ValueError(
+            f"{where}: DT is in {dt_unit!r}; read_at2 reads DT in seconds only "
+            "('SEC' or no unit)"
+        )
+    dt = float(dt_text)
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"{where}: DT must be finite and > 0 s, got {dt_text}")
+    if npts < 2:
+        raise ValueError(f"{where}: NPTS must be at least 2, got {npts}")
+    return npts, dt
+
+
+def _samples(body: list[str], first: int, name: str) -> np.ndarray:
+    """Every value in the body lines (line `first` onwards), each a finite number."""
+    try:
+        values = np.array(" ".join(body).split(), dtype=float)
+        ok = bool(np.all(np.isfinite(values)))
+    except ValueError:
+        ok = False
+    if not ok:
+        values = _samples_line_by_line(body, first, name)
+    return values
+
+
+def _samples_line_by_line(body: list[str], first: int, name: str) -> np.ndarray:
+    """The body's values read token by token, naming the line and token at fault."""
+    parsed = []
+    for n, line in enumerate(body, start=first):
+        for token in line.split():
+            try:
+                value = float(token)
+            except ValueError as err:
+                raise ValueError(
+                    f"{name!r}, line {n}: value {token!r} is not a number"
+                ) from err
+            if not math.isfinite(value):
+                raise ValueError(f"{name!r}, line {n}: value {token!r} is not finite")
+            parsed.append(value)
+    return np.array(parsed)
+
+
+def _check_count(values: np.ndarray, npts: int, name: str, line: int) -> None:
+    """Raises ValueError when the number of values differs from NPTS."""
+    if values.size != npts:
+        raise ValueError(
+            f"{name!r}: header (line {line}) says NPTS = {npts} but the file "
+            f"holds {values.size} values "
+            f"(too {'few' if values.size < npts else 'many'})"
+        )
+
+
 def read_at2(path: str | os.PathLike) -> Record:
     """Reads a PEER NGA `.AT2` accelerogram and returns it as a `Record` in m/s^2.
 
@@ -150,89 +264,15 @@ def read_at2(path: str | os.PathLike) -> Record:
     (164.0, 77)
     """
     name, text = _read_text(path)
-    if os.path.splitext(name)[1].upper() in (".VT2", ".DT2"):
-        raise ValueError(
-            f"{name!r} is a velocity or displacement file (suffix "
-            f"{os.path.splitext(name)[1]!r}): read_at2 reads acceleration only"
-        )
-    # Not `splitlines`: it also splits at U+0085, which a Latin-1 byte 0x85
-    # decodes to, and line numbers would then be off.
-    lines = re.split(r"\r\n|\r|\n", text)
-
-    for i, line in enumerate(lines[:10]):
-        if re.search(r"NPTS", line, re.I) and re.search(r"\bDT\b", line, re.I):
-            break
-    else:
-        raise ValueError(
-            f"{name!r} is not an AT2 file: no 'NPTS=..., DT=...' or "
-            "'n dt NPTS, DT' line in its first 10 lines"
-        )
+    _refuse_other_series_suffix(name)
+    lines = _split_lines(text)
+    i = _npts_dt_line_index(lines, name)
     where = f"{name!r}, line {i + 1}"
-    match = _NEW_HEADER.search(lines[i]) or _OLD_HEADER.search(lines[i])
-    if not match:
-        raise ValueError(f"{where}: cannot read NPTS and DT from {lines[i].strip()!r}")
-
-    factor = GRAVITY
-    units_found = False
-    for k, line in enumerate(lines[:i]):
-        if _NOT_ACCELERATION.search(line):
-            raise ValueError(
-                f"{name!r}, line {k + 1}: the header declares a velocity or "
-                f"displacement series ({line.strip()!r}): read_at2 reads "
-                "acceleration only"
-            )
-        unit = None if units_found else _unit_text(line)
-        if unit is not None:
-            units_found = True
-            factor = _to_m_s2(unit)
-            if factor is None:
-                raise ValueError(
-                    f"{name!r}, line {k + 1}: unit {unit!r} is not recognised "
-                    "(read_at2 reads g, cm/s^2 (CM/S/S, GAL) or m/s^2 (M/S/S))"
-                )
-
-    npts, dt_text, dt_unit = match.group(1), match.group(2), match.group(3) or ""
-    npts = int(npts)
-    if dt_unit.upper().rstrip(".") not in _SECONDS:
-        raise ValueError(
-            f"{where}: DT is in {dt_unit!r}; read_at2 reads DT in seconds only "
-            "('SEC' or no unit)"
-        )
-    dt = float(dt_text)
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"{where}: DT must be finite and > 0 s, got {dt_text}")
-    if npts < 2:
-        raise ValueError(f"{where}: NPTS must be at least 2, got {npts}")
-
-    body = lines[i + 1 :]
-    try:
-        values = np.array(" ".join(body).split(), dtype=float)
-        ok = bool(np.all(np.isfinite(values)))
-    except ValueError:
-        ok = False
-    if not ok:
-        # Slow path, only to say which line and token are at fault.
-        parsed = []
-        for n, line in enumerate(body, start=i + 2):
-            for token in line.split():
-                try:
-                    value = float(token)
-                except ValueError as err:
-                    raise ValueError(
-                        f"{name!r}, line {n}: value {token!r} is not a number"
-                    ) from err
-                if not math.isfinite(value):
-                    raise ValueError(
-                        f"{name!r}, line {n}: value {token!r} is not finite"
-                    )
-                parsed.append(value)
-        values = np.array(parsed)
-    if values.size != npts:
-        raise ValueError(
-            f"{name!r}: header (line {i + 1}) says NPTS = {npts} but the file "
-            f"holds {values.size} values "
-            f"(too {'few' if values.size < npts else 'many'})"
-        )
+    match = _match_npts_dt(lines[i], where)
+    factor = _acceleration_factor(lines[:i], name)
+    npts, dt = _npts_and_dt(match, where)
+    values = _samples(lines[i + 1 :], i + 2, name)
+    _check_count(values, npts, name, i + 1)
     return Record(values * factor, dt, **at2_labels(lines[:i], name))
 
 

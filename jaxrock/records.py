@@ -103,6 +103,89 @@ def _without_component(name: str | None, azimuth: float) -> str | None:
     return name
 
 
+def _component_azimuths(a: Record, b: Record, azimuths) -> tuple[float, float]:
+    """The components' azimuths: `azimuths`, else `a.azimuth` and `b.azimuth`."""
+    if azimuths is None:
+        if a.azimuth is None or b.azimuth is None:
+            raise ValueError(
+                "the components' azimuths are unknown (a.azimuth = "
+                f"{a.azimuth!r}, b.azimuth = {b.azimuth!r}): give them as "
+                "`azimuths=(az_a, az_b)`, degrees clockwise from north"
+            )
+        azimuths = (a.azimuth, b.azimuth)
+    if isinstance(azimuths, (str, bytes)) or np.shape(azimuths) != (2,):
+        raise ValueError(
+            "`azimuths` must be a pair (az_a, az_b) of angles in degrees, got "
+            f"{azimuths!r}"
+        )
+    phi_a = _degrees("azimuths", azimuths[0])
+    phi_b = _degrees("azimuths", azimuths[1])
+    return phi_a, phi_b
+
+
+def _determinant(phi_a: float, phi_b: float) -> float:
+    """sin(phi_b - phi_a); ValueError when the components are nearly parallel."""
+    det = _sind(phi_b - phi_a)
+    if abs(det) < _PARALLEL:
+        raise ValueError(
+            f"the components are nearly parallel (azimuths {phi_a:g} and "
+            f"{phi_b:g} deg, |sin(az_b - az_a)| = {abs(det):.3g} < {_PARALLEL}): "
+            "the ground motion across them cannot be recovered; check `azimuths`"
+        )
+    return det
+
+
+def _common_step_and_length(a: Record, b: Record) -> tuple[float, int]:
+    """`a`'s time step and the shorter length, once `dt` and length agree."""
+    dt_a, dt_b = float(a.dt), float(b.dt)
+    if not math.isclose(dt_a, dt_b, rel_tol=1e-9, abs_tol=0.0):
+        raise ValueError(
+            f"`b` has dt = {dt_b:g} s but `a` has dt = {dt_a:g} s: the two "
+            "components must share one time step"
+        )
+    n_a, n_b = int(a.length), int(b.length)
+    if abs(n_a - n_b) > _LENGTH_TOLERANCE * max(n_a, n_b):
+        raise ValueError(
+            f"`a` has {n_a} samples and `b` has {n_b}: they differ by more than "
+            f"{_LENGTH_TOLERANCE:.0%}, so they are not two components of one "
+            "recording"
+        )
+    return dt_a, min(n_a, n_b)
+
+
+def _project(
+    a: Record,
+    b: Record,
+    n: int,
+    phi_a: float,
+    phi_b: float,
+    theta: float,
+    det: float,
+) -> np.ndarray:
+    """The first `n` samples of the ground motion projected on azimuth `theta`."""
+    samples_a = np.asarray(a.samples, dtype=float)[:n]
+    samples_b = np.asarray(b.samples, dtype=float)[:n]
+    weight_a = _sind(phi_b - theta) / det
+    weight_b = _sind(theta - phi_a) / det
+    return weight_a * samples_a + weight_b * samples_b
+
+
+def _rotated_record(
+    samples: np.ndarray, dt: float, a: Record, phi_a: float, theta: float
+) -> Record:
+    """The result `Record`, labelled with `a`'s name and rsn and the target."""
+    target = theta % 360.0
+    stem = _without_component(a.name, phi_a)
+    label = f"rotated to {_format_degrees(target)} deg"
+    return Record(
+        samples,
+        dt,
+        name=f"{stem}, {label}" if stem else label,
+        azimuth=target,
+        rsn=a.rsn,
+    )
+
+
 def rotate(
     a: Record,
     b: Record,
@@ -161,57 +244,11 @@ def rotate(
     """
     a, b = _single("a", a), _single("b", b)
     theta = _degrees("azimuth", azimuth)
-    if azimuths is None:
-        if a.azimuth is None or b.azimuth is None:
-            raise ValueError(
-                "the components' azimuths are unknown (a.azimuth = "
-                f"{a.azimuth!r}, b.azimuth = {b.azimuth!r}): give them as "
-                "`azimuths=(az_a, az_b)`, degrees clockwise from north"
-            )
-        azimuths = (a.azimuth, b.azimuth)
-    if isinstance(azimuths, (str, bytes)) or np.shape(azimuths) != (2,):
-        raise ValueError(
-            "`azimuths` must be a pair (az_a, az_b) of angles in degrees, got "
-            f"{azimuths!r}"
-        )
-    phi_a = _degrees("azimuths", azimuths[0])
-    phi_b = _degrees("azimuths", azimuths[1])
-    det = _sind(phi_b - phi_a)
-    if abs(det) < _PARALLEL:
-        raise ValueError(
-            f"the components are nearly parallel (azimuths {phi_a:g} and "
-            f"{phi_b:g} deg, |sin(az_b - az_a)| = {abs(det):.3g} < {_PARALLEL}): "
-            "the ground motion across them cannot be recovered; check `azimuths`"
-        )
-
-    dt_a, dt_b = float(a.dt), float(b.dt)
-    if not math.isclose(dt_a, dt_b, rel_tol=1e-9, abs_tol=0.0):
-        raise ValueError(
-            f"`b` has dt = {dt_b:g} s but `a` has dt = {dt_a:g} s: the two "
-            "components must share one time step"
-        )
-    n_a, n_b = int(a.length), int(b.length)
-    if abs(n_a - n_b) > _LENGTH_TOLERANCE * max(n_a, n_b):
-        raise ValueError(
-            f"`a` has {n_a} samples and `b` has {n_b}: they differ by more than "
-            f"{_LENGTH_TOLERANCE:.0%}, so they are not two components of one "
-            "recording"
-        )
-    n = min(n_a, n_b)
-    samples_a = np.asarray(a.samples, dtype=float)[:n]
-    samples_b = np.asarray(b.samples, dtype=float)[:n]
-    weight_a = _sind(phi_b - theta) / det
-    weight_b = _sind(theta - phi_a) / det
-    target = theta % 360.0
-    stem = _without_component(a.name, phi_a)
-    label = f"rotated to {_format_degrees(target)} deg"
-    return Record(
-        weight_a * samples_a + weight_b * samples_b,
-        dt_a,
-        name=f"{stem}, {label}" if stem else label,
-        azimuth=target,
-        rsn=a.rsn,
-    )
+    phi_a, phi_b = _component_azimuths(a, b, azimuths)
+    det = _determinant(phi_a, phi_b)
+    dt, n = _common_step_and_length(a, b)
+    samples = _project(a, b, n, phi_a, phi_b, theta, det)
+    return _rotated_record(samples, dt, a, phi_a, theta)
 
 
 def strike_normal(
