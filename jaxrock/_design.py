@@ -355,16 +355,27 @@ def tune_isolator(
         SolverOptions(rtol=rtol, atol=atol),
     )
 
+    x = scale.unit(init)
+    value_and_grad = _value_and_grad_of(make_base, scale, problem, x)
+    optimizer = optimizer or optax.adam(learning_rate)
+    rows = _descend(value_and_grad, optimizer, x, steps, scale)
+    return _design_result(rows, names)
+
+
+def _value_and_grad_of(make_base, scale: "_Scaling", problem: tuple, x: dict):
+    """J, dJ/dx and the responses as a function of the scaled point x, for the
+    isolator `make_base` builds (checked at x: an isolated base)."""
+
     def base_at(x):
         return make_base(scale.params(x))
 
-    x = scale.unit(init)
     base = base_at(x)
     if not isinstance(base, AbstractIsolator) or base.n_states == 0:
         raise ValueError(
             "`make_base` must return an isolated base (LinearIsolator or "
             f"FrictionPendulum) built from the parameters, got {type(base).__name__}"
         )
+    names = scale.names
     units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
 
     def value_and_grad(x):
@@ -375,9 +386,7 @@ def tune_isolator(
         value, grad, r = _value_and_grad(base_at(x), tangents, *problem)
         return value, {k: grad[i] for i, k in enumerate(names)}, r
 
-    optimizer = optimizer or optax.adam(learning_rate)
-    rows = _descend(value_and_grad, optimizer, x, steps, scale)
-    return _design_result(rows, names)
+    return value_and_grad
 
 
 class _Scaling:
