@@ -281,6 +281,18 @@ class Fragility(eqx.Module):
         return dataset(rows | fit, coords, attrs)
 
 
+def _moving_peaks(motions):
+    """(PGA, PGV) of each motion; `ValueError` if one does not move the ground."""
+    pga, pgv = _peaks(motions)
+    if not (np.all(pga > 0) and np.all(pgv > 0)):
+        raise ValueError(
+            "every motion of `motions` must move the ground (an intensity measure "
+            f"> 0): {int(np.sum(~((pga > 0) & (pgv > 0))))} of them have zero "
+            "amplitude"
+        )
+    return pga, pgv
+
+
 def fragility(
     slenderness: float,
     size: float,
@@ -344,13 +356,7 @@ def fragility(
             "`motions` must be an ensemble (a suite of records or a batched pulse), "
             "or give `scales`"
         )
-    pga, pgv = _peaks(motions)
-    if not (np.all(pga > 0) and np.all(pgv > 0)):
-        raise ValueError(
-            "every motion of `motions` must move the ground (an intensity measure "
-            f"> 0): {int(np.sum(~((pga > 0) & (pgv > 0))))} of them have zero "
-            "amplitude"
-        )
+    pga, pgv = _moving_peaks(motions)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     outcome = bm.outcome.reshape(-1)
     pga = np.broadcast_to(pga, outcome.shape)
