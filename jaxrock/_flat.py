@@ -50,18 +50,52 @@ def _unrollable(solver) -> bool:
     return isinstance(solver, diffrax.AbstractERK) and solver.tableau.c1 == 0
 
 
-def _erk_step(tableau, t0, t1, y0, args):
+def _stage_times(tableau, t0, t1):
+    """The times of an explicit Runge-Kutta step's stages, t0 + c_i h."""
+    h = t1 - t0
+    return [t0] + [t0 + c * h for c in tableau.c]
+
+
+class _Known(AbstractGroundMotion):
+    """The ground's acceleration at one time, already computed: what a stage of
+    `_erk_step` or a condition at a step's end reads of the motion (one
+    vectorized evaluation at all of a step's times, in `_attempt`, instead of
+    one per stage)."""
+
+    value: jax.Array
+
+    def acceleration(self, t):
+        return jnp.broadcast_to(self.value, jnp.shape(t))
+
+    def acceleration_bound(self, t0, t1):
+        raise NotImplementedError
+
+    @property
+    def end_time(self):
+        raise NotImplementedError
+
+
+def _with_ground(args: Args, value) -> Args:
+    return eqx.tree_at(lambda a: a.motion, args, _Known(value))
+
+
+def _erk_step(tableau, t0, t1, y0, args, ground=None):
     """One step of an explicit Runge-Kutta method, its stages unrolled.
 
     The same arithmetic as Diffrax's `AbstractERK.step` (which runs the stages in
     a while loop: on the CPU the loop's overhead cost more than the stages of
-    this small system). Returns y1, the error estimate and Diffrax's dense
+    this small system). `ground` holds x_g'' at the stage times
+    (`_stage_times`; None: read from `args.motion`). Returns y1, the error estimate and Diffrax's dense
     information (y0, y1 and the stage increments k_i = h f(t_i, y_i)).
     """
     h = t1 - t0
+    times = _stage_times(tableau, t0, t1)
+    if ground is None:
+        ground = [args.motion.acceleration(t) for t in times]
 
-    def increment(t, y):
-        return jax.tree_util.tree_map(lambda v: h * v, vector_field(t, y, args))
+    def increment(i, y):
+        f = vector_field(times[i], y, _with_ground(args, ground[i]))
+        return jax.tree_util.tree_map(lambda v: h * v, f)
 
     def combine(y, weights, ks):
         return jax.tree_util.tree_map(
@@ -70,9 +104,9 @@ def _erk_step(tableau, t0, t1, y0, args):
             *ks,
         )
 
-    ks = [increment(t0, y0)]
-    for c, a in zip(tableau.c, tableau.a_lower):
-        ks.append(increment(t0 + c * h, combine(y0, a, ks)))
+    ks = [increment(0, y0)]
+    for i, a in enumerate(tableau.a_lower, start=1):
+        ks.append(increment(i, combine(y0, a, ks)))
     y1 = combine(y0, tableau.b_sol, ks)
     y_error = combine(jax.tree_util.tree_map(jnp.zeros_like, y0), tableau.b_error, ks)
     k = jax.tree_util.tree_map(lambda *k: jnp.stack(k), *ks)
@@ -127,8 +161,18 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     if kink is not None:
         t1 = jnp.minimum(t1, kink)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
+    args0 = args1 = args
     if _unrollable(solver):
-        y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args)
+        ground = None
+        if motion.sample_count == 0:
+            # A closed form: x_g'' at the stage times and at t1 in one
+            # evaluation (one copy of it in the program, not one a stage).
+            # A record is read at each stage: its reads are gathers, and
+            # results stay the same to the last bit in every program.
+            times = jnp.stack(_stage_times(solver.tableau, t0, t1) + [t1])
+            ground = computed_once(jax.vmap(motion.acceleration)(times))
+            args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
+        y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args, ground)
         y1, y_error = computed_once((y1, y_error))  # read by most of the step
         solver_result = diffrax.RESULTS.successful
     else:
@@ -144,7 +188,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     crossed, fired, before = [], [], jnp.asarray(False)
     g0 = g1 = jnp.zeros_like(t0)
     for cond in jax.tree_util.tree_leaves(conditions):
-        v0, v1 = cond(t0, y0, args), cond(t1, y1, args)
+        v0, v1 = cond(t0, y0, args0), cond(t1, y1, args1)
         crossed.append(keep & (v0 > 0) & (v1 <= 0))
         hit = crossed[-1] & ~before
         fired.append(hit)
