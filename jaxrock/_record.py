@@ -14,9 +14,11 @@ from ._ground import AbstractGroundMotion
 from ._misc import (
     GRAVITY,
     Constraint,
+    computed_once,
     describe_values,
     greater_than_zero,
     parameter,
+    real_number,
     scale_factors,
 )
 
@@ -36,7 +38,13 @@ class Record(AbstractGroundMotion):
     Sample k is at t = k dt; x_g'' is linear between samples and zero after
     the last one. A suite (`Record.stack`) holds several records along leading
     axes, each with its own `dt` and number of samples (`length`); the rest of
-    its row is padding that no result depends on.
+    its row is padding that no result depends on. A scaled record or suite
+    (`scaled`, `scaled_to`) keeps the unscaled samples and a factor per
+    record: the samples of a suite at many intensities are stored once, and
+    `samples` multiplies them out. `factor` (keyword) builds one: a factor
+    per record of the batch (> 0), whose shape is the batch's and ends with
+    the leading axes of `acceleration`; `dt` and `length` then have the
+    batch's shape.
 
     Labels for titles and tables, static (they never enter a computation):
     `name` (event, station and component), `azimuth` (the component's
@@ -51,11 +59,16 @@ class Record(AbstractGroundMotion):
         (Array(9.99, dtype=float64), Array(6., dtype=float64))
     """
 
-    samples: Float[Array, "*batch n"] = parameter("acceleration", "m/s^2")
+    # x_g'' at the samples before `factor` (m/s^2): a record per leading index,
+    # the last axes of the batch (`batch_shape` adds the factors' axes).
+    unscaled: Float[Array, "*records n"] = parameter("acceleration", "m/s^2")
     dt: Float[Array, "*batch"] = parameter("dt", "s")
     length: Int[Array, "*batch"]
-    # max |x_g''| over sample ranges [k, k + 2^l) (`with_peaks`), or None.
-    peaks: Float[Array, "*batch levels n"] | None
+    # The scale factor of each record of the batch (> 0), or None: 1.
+    factor: Float[Array, "*batch"] | None
+    # max |x_g''| of `unscaled` over sample ranges [k, k + 2^l) (`with_peaks`),
+    # or None.
+    peaks: Float[Array, "*records levels n"] | None
     # Inside a map under a suite: the suite's record this one reads (`row`),
     # else None.
     index: Int[Array, ""] | None
@@ -65,46 +78,91 @@ class Record(AbstractGroundMotion):
     rsn: int | tuple | None = eqx.field(static=True)
 
     def __init__(
-        self, acceleration, dt, *, length=None, name=None, azimuth=None, rsn=None
+        self,
+        acceleration,
+        dt,
+        *,
+        length=None,
+        name=None,
+        azimuth=None,
+        rsn=None,
+        factor=None,
     ):
-        self.samples = acceleration
+        self.unscaled = acceleration
         self.dt = dt
-        n = np.shape(self.samples)[-1] if np.ndim(self.samples) else 0
+        self.factor = None if factor is None else real_number("factor", factor)
+        n = np.shape(self.unscaled)[-1] if np.ndim(self.unscaled) else 0
         length = n if length is None else length
         self.length = jnp.broadcast_to(
             jnp.asarray(length, dtype=int), jnp.shape(self.dt)
         )
-        count = int(np.prod(np.shape(self.samples)[:-1]))
-        if np.ndim(self.samples) > 1:  # a suite: one label per record
+        if self.batch_shape:  # a suite: one label per record
+            count = int(np.prod(self.batch_shape))
             name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
         self.name, self.azimuth, self.rsn = name, azimuth, rsn
         self.peaks = None
         self.index = None
 
     def __check_init__(self):
-        shape = np.shape(self.samples)
+        shape = np.shape(self.unscaled)
         if len(shape) < 1 or shape[-1] < 2:
             raise ValueError(
                 "`acceleration` must hold at least 2 samples (along its last axis), "
                 f"got shape {shape}"
             )
-        if np.shape(self.dt) != shape[:-1]:
+        records = shape[:-1]
+        if self.batch_shape[len(self.batch_shape) - len(records) :] != records:
             raise ValueError(
-                f"`dt` must have shape {shape[:-1]} (one per record), got "
+                f"`factor` must have a shape that ends with {records} (a factor "
+                f"per record), got {self.batch_shape}"
+            )
+        if np.shape(self.dt) != self.batch_shape:
+            raise ValueError(
+                f"`dt` must have shape {self.batch_shape} (one per record), got "
                 f"{np.shape(self.dt)}"
             )
 
     def constraints(self):
-        n = np.shape(self.samples)[-1]
-        return [
+        n = self.sample_count
+        out = [
             Constraint(
-                "acceleration", self.samples, lambda v: v == v, "finite (no NaN or inf)"
+                "acceleration",
+                self.unscaled,
+                lambda v: v == v,
+                "finite (no NaN or inf)",
             ),
             greater_than_zero("dt", self.dt),
             Constraint(
                 "length", self.length, lambda v: (v >= 2) & (v <= n), f">= 2 and <= {n}"
             ),
         ]
+        if self.factor is not None:
+            out.append(greater_than_zero("factor", self.factor))
+        return out
+
+    @property
+    def samples(self) -> Float[Array, "*batch n"]:
+        """x_g'' at the samples (m/s^2), with `batch_shape` leading axes."""
+        if self.factor is None:
+            return self.unscaled
+        return self.factor[..., None] * self.unscaled
+
+    def _rebuilt(self, factor=None, **labels) -> "Record":
+        """The record with `labels`, times `factor` if given (an array whose
+        shape ends with the batch shape: leading axes are new), its samples
+        not multiplied out."""
+        shape = np.broadcast_shapes(np.shape(factor), self.batch_shape)
+        total = self.factor
+        if factor is not None:
+            total = factor if total is None else factor * total
+            total = jnp.broadcast_to(total, shape)
+        return Record(
+            self.unscaled,
+            jnp.broadcast_to(self.dt, shape),
+            length=jnp.broadcast_to(self.length, shape),
+            factor=total,
+            **labels,
+        )
 
     # -- building ---------------------------------------------------------------
 
@@ -121,10 +179,8 @@ class Record(AbstractGroundMotion):
             raise ValueError("`records` must be a non-empty list of Record")
         if any(r.batch_shape != () for r in records):
             raise ValueError("`records` must be single records, not suites")
-        n = max(r.samples.shape[-1] for r in records)
-        rows = [
-            np.pad(np.asarray(r.samples), (0, n - r.samples.shape[-1])) for r in records
-        ]
+        n = max(r.sample_count for r in records)
+        rows = [np.pad(np.asarray(r.samples), (0, n - r.sample_count)) for r in records]
         return cls(
             np.stack(rows),
             np.stack([np.asarray(r.dt) for r in records]),
@@ -137,23 +193,17 @@ class Record(AbstractGroundMotion):
     def scaled(self, factor) -> "Record":
         """The record times `factor` (> 0). An array of factors adds leading
         axes: one record at many intensities (a suite: every record at every
-        factor, the factors' axes first)."""
+        factor, the factors' axes first). The samples are not copied per
+        factor (see `samples`)."""
         factor = scale_factors(factor)
-        batch, n = self.batch_shape, self.samples.shape[-1]
-        shape = factor.shape + batch
-        samples = factor.reshape(shape[: factor.ndim] + (1,) * len(batch) + (1,))
-        samples = samples * self.samples
+        batch = self.batch_shape
         labels = self.labels()
         if factor.ndim:
             labels = {
                 k: v * int(factor.size) for k, v in self.labels(flat=True).items()
             }
-        return Record(
-            jnp.broadcast_to(samples, shape + (n,)),
-            jnp.broadcast_to(self.dt, shape),
-            length=jnp.broadcast_to(self.length, shape),
-            **labels,
-        )
+        factor = factor.reshape(factor.shape + (1,) * len(batch))
+        return self._rebuilt(factor, **labels)
 
     def scaled_to(self, *, pga=None, pgv=None) -> "Record":
         """The record scaled to a peak ground acceleration `pga` (m/s^2) or
@@ -169,9 +219,7 @@ class Record(AbstractGroundMotion):
         if np.any(now <= 0):
             raise ValueError(f"a record with zero {name.upper()} cannot be scaled")
         factor = np.broadcast_to(target / now, now.shape)
-        return eqx.tree_at(
-            lambda r: r.samples, self, self.samples * jnp.asarray(factor)[..., None]
-        )
+        return self._rebuilt(jnp.asarray(factor), **self.labels())
 
     def labels(self, flat: bool = False) -> dict:
         """name, azimuth and rsn; with `flat`, as tuples over the records."""
@@ -183,8 +231,11 @@ class Record(AbstractGroundMotion):
     def select(self, index) -> "Record":
         """Records by position in the suite (its motion axes flattened, C
         order): an int gives one record, an array of ints a suite."""
-        n = self.samples.shape[-1]
-        samples = self.samples.reshape(-1, n)[index]
+        n = self.sample_count
+        rows = self.unscaled.reshape(-1, n)
+        samples = rows[jnp.asarray(index) % rows.shape[0]]
+        if self.factor is not None:
+            samples = jnp.reshape(self.factor, -1)[index][..., None] * samples
         dt = jnp.reshape(self.dt, -1)[index]
         length = jnp.reshape(self.length, -1)[index]
         try:
@@ -208,7 +259,7 @@ class Record(AbstractGroundMotion):
     def unlabeled(self) -> "Record":
         """The record without labels: what compiled code takes (labels are
         static, so two labels would compile twice)."""
-        out = Record(self.samples, self.dt, length=self.length)
+        out = Record(self.unscaled, self.dt, length=self.length, factor=self.factor)
         return eqx.tree_at(
             lambda r: (r.peaks, r.index),
             out,
@@ -223,15 +274,21 @@ class Record(AbstractGroundMotion):
         samples are never copied per lane. Only the engines' methods
         (`acceleration`, `end_time`, `acceleration_bound`, `next_kink`) read
         a view."""
-        n = self.samples.shape[-1]
-        flat = Record(self.samples.reshape(-1, n), self.dt.reshape(-1))
-        peaks = self.peaks
-        if peaks is not None:
-            peaks = peaks.reshape((-1,) + peaks.shape[-2:])
+
+        def flat(x, tail=0):  # the batch's axes as one
+            return None if x is None else x.reshape((-1,) + x.shape[x.ndim - tail :])
+
         return eqx.tree_at(
-            lambda r: (r.length, r.peaks, r.index),
-            flat,
-            (self.length.reshape(-1), peaks, jnp.asarray(index)),
+            lambda r: (r.unscaled, r.dt, r.length, r.factor, r.peaks, r.index),
+            self.unlabeled(),
+            (
+                flat(self.unscaled, 1),
+                flat(self.dt),
+                flat(self.length),
+                flat(self.factor),
+                flat(self.peaks, 2),
+                jnp.asarray(index),
+            ),
             is_leaf=lambda x: x is None,
         )
 
@@ -242,26 +299,45 @@ class Record(AbstractGroundMotion):
         return eqx.tree_at(lambda r: r.index, axes, 0, is_leaf=lambda x: x is None)
 
     def _read(self, array, *at):
-        """array[at] of this record: of the suite's row `index` for a view."""
-        return array[at] if self.index is None else array[(self.index,) + at]
+        """array[at] of `unscaled` or `peaks` of this record: of the suite's
+        record `index` for a view (the factors' axes lead the batch)."""
+        if self.index is None:
+            return array[at]
+        row = self.index if self.factor is None else self.index % len(self.unscaled)
+        return array[(row,) + at]
+
+    def _of_batch(self, array):
+        """This record's element of `dt`, `length` or `factor`."""
+        return array if self.index is None else array[self.index]
 
     @property
     def _dt(self):
-        return self.dt if self.index is None else self.dt[self.index]
+        return self._of_batch(self.dt)
 
     @property
     def _length(self):
-        return self.length if self.index is None else self.length[self.index]
+        return self._of_batch(self.length)
+
+    def _sample(self, k):
+        """x_g'' at the samples k (m/s^2)."""
+        a = self._read(self.unscaled, k)
+        if self.factor is None:
+            return a
+        # Rounded as the product multiplied out (`samples`) would be: no
+        # rewrite of XLA's, f a1 - f a0 -> f (a1 - a0), reaches across.
+        return computed_once(self._of_batch(self.factor) * a)
 
     # -- what the engines read ----------------------------------------------------
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
-        return tuple(np.shape(self.samples)[:-1])
+        if self.factor is not None:
+            return tuple(np.shape(self.factor))
+        return tuple(np.shape(self.unscaled)[:-1])
 
     @property
     def sample_count(self) -> int:
-        return int(np.shape(self.samples)[-1])
+        return int(np.shape(self.unscaled)[-1])
 
     def describe(self):
         if self.batch_shape:
@@ -278,7 +354,7 @@ class Record(AbstractGroundMotion):
         x = t / dt
         k = jnp.clip(jnp.floor(x), 0, length - 2).astype(int)
         frac = x - k
-        a0, a1 = self._read(self.samples, k), self._read(self.samples, k + 1)
+        a0, a1 = self._sample(k), self._sample(k + 1)
         value = a0 + (a1 - a0) * frac
         return jnp.where((t >= 0) & (t <= (length - 1) * dt), value, 0.0)
 
@@ -290,13 +366,13 @@ class Record(AbstractGroundMotion):
         """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
         largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
         at most `_BOUND_SAMPLES` samples after t0 (inf for a longer interval)."""
-        n = self.samples.shape[-1]
+        n = self.sample_count
         dt = self._dt
         width = min(_BOUND_SAMPLES, n)
         first = jnp.floor(t0 / dt) + 1.0  # the first sample after t0
         start = jnp.clip(first, 0, n - width).astype(int)
         index = start + jnp.arange(width)
-        near = self._read(self.samples, index)
+        near = self._sample(index)
         inside = (index >= first) & (index * dt < t1) & (index < self._length)
         ends = jnp.maximum(
             jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
@@ -311,8 +387,9 @@ class Record(AbstractGroundMotion):
         `next_kink` finds the first sample above a level in L reads. Of a
         suite, one table a record, unless the tables would exceed
         `_PEAKS_BYTES` (a suite's resting blocks then step through its
-        samples). Traceable."""
-        level = jnp.abs(self.samples)
+        samples). Of a scaled record, the table of its unscaled samples.
+        Traceable."""
+        level = jnp.abs(self.unscaled)
         n = level.shape[-1]
         if level.size * _levels(n) * level.dtype.itemsize > _PEAKS_BYTES:
             return self
@@ -349,8 +426,12 @@ class Record(AbstractGroundMotion):
             times[0] > t, times[0], jnp.where(times[1] > t, times[1], times[2])
         )
         if quiet_below is not None and self.peaks is not None:
-            peak = lambda width_log, k: self._read(self.peaks, width_log, k)  # noqa: E731
-            n = self.samples.shape[-1]
+            scale = 1.0 if self.factor is None else self._of_batch(self.factor)
+
+            def peak(width_log, k):  # max |f x| = f max |x| (f > 0), exactly
+                return scale * self._read(self.peaks, width_log, k)
+
+            n = self.sample_count
             first = _first_at_least(peak, n, index.astype(int), quiet_below)
             later = jnp.minimum(first - 1, self._length - 1).astype(index.dtype)
             kink = jnp.where(later > index, dt * later, kink)

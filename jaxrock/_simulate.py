@@ -296,11 +296,11 @@ def _check_single(block, base, motion):
         raise ValueError(f"`block` must be a jaxrock.Block, got {type(block).__name__}")
     check_base_and_motion(base, motion)
     for name, module in (("block", block), ("base", base), ("motion", motion)):
-        shapes = {
-            np.shape(x)
-            for x in jax.tree_util.tree_leaves(module)
-            if not (name == "motion" and x is getattr(module, "samples", None))
-        }
+        shapes = (
+            {module.batch_shape}
+            if name == "motion"
+            else {np.shape(x) for x in jax.tree_util.tree_leaves(module)}
+        )
         if shapes - {()}:
             raise ValueError(
                 f"`{name}` must hold one value per parameter in `simulate`, got "

@@ -50,6 +50,29 @@ def test_a_suite_map_equals_each_records_own_map(records, base):
     assert len(set(np.unique(bm.outcome))) >= 2  # the comparison means something
 
 
+@jax.jit
+def _reads(m, t, level):
+    """What the engines read of a motion at the times t (`level`: a resting
+    block's uplift level, for the skip of `next_kink`)."""
+    return m.end_time, *jax.vmap(
+        lambda t: (
+            m.acceleration(t),
+            m.acceleration_bound(t, t + 0.05),
+            m.next_kink(t),
+            m.next_kink(t, level),
+        )
+    )(t)
+
+
+def _assert_reads_equal(view, alone):
+    t = np.linspace(-0.5, float(alone.end_time) + 1.0, 97)
+    level = 0.5 * float(np.max(np.abs(alone.samples)))
+    got, expected = _reads(view, t, level), _reads(alone, t, level)
+    for g, e in zip(got, expected):
+        np.testing.assert_array_equal(g, e)
+    assert np.any(got[4] > got[3])  # it skips samples
+
+
 def test_a_suite_row_reads_its_record_in_place(records, monkeypatch):
     """What a map's lane reads of a suite's row (`Record.row`) is what it
     reads of the record alone: samples, end, bounds and the skip to the next
@@ -58,26 +81,33 @@ def test_a_suite_row_reads_its_record_in_place(records, monkeypatch):
     with_peaks = jax.jit(lambda m: m.with_peaks())
     suite = with_peaks(jr.Record.stack(records).unlabeled())
     for i, record in enumerate(records):
-        alone, view = with_peaks(record.unlabeled()), suite.row(i)
-        t = np.linspace(-0.5, float(alone.end_time) + 1.0, 97)
-        level = 0.5 * float(np.max(np.abs(record.samples)))
-
-        @jax.jit
-        def read(m):
-            return m.end_time, *jax.vmap(
-                lambda t: (
-                    m.acceleration(t),
-                    m.acceleration_bound(t, t + 0.05),
-                    m.next_kink(t),
-                    m.next_kink(t, level),
-                )
-            )(t)
-
-        for got, expected in zip(read(view), read(alone)):
-            np.testing.assert_array_equal(got, expected)
-        assert np.any(read(view)[4] > read(view)[3])  # it skips samples
+        _assert_reads_equal(suite.row(i), with_peaks(record.unlabeled()))
     monkeypatch.setattr(_record, "_PEAKS_BYTES", 0)
     assert jr.Record.stack(records).with_peaks().peaks is None
+
+
+def test_a_scaled_suite_keeps_one_copy_of_its_samples(records):
+    """A suite at several intensities stores each record's samples and table
+    of peaks once, and a lane reads from its row exactly what it reads of
+    the record multiplied out."""
+    factors = np.array([0.5, 2.0])
+    scaled = jr.Record.stack(records).scaled(factors)
+    assert scaled.batch_shape == (2, len(records))
+    assert scaled.unscaled.shape[0] == len(records)
+    tables = jax.jit(lambda m: m.with_peaks())(scaled.unlabeled())
+    assert tables.peaks.shape[0] == len(records)
+    for j, factor in enumerate(factors):
+        for i, record in enumerate(records):
+            n = int(record.length)
+            alone = jr.Record(factor * np.asarray(record.samples)[:n], record.dt)
+            np.testing.assert_array_equal(scaled.samples[j, i, :n], alone.samples)
+            view = tables.row(j * len(records) + i)
+            _assert_reads_equal(view, alone.unlabeled().with_peaks())
+    picked = scaled.select(np.array([1, len(records)]))
+    np.testing.assert_array_equal(
+        picked.samples,
+        np.asarray(scaled.samples).reshape(-1, scaled.sample_count)[[1, len(records)]],
+    )
 
 
 def test_a_suite_map_over_bases_as_labeled_arrays(records, tmp_path):
