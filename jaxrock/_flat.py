@@ -85,8 +85,9 @@ def _erk_step(tableau, t0, t1, y0, args, ground=None):
     The same arithmetic as Diffrax's `AbstractERK.step` (which runs the stages in
     a while loop: on the CPU the loop's overhead cost more than the stages of
     this small system). `ground` holds x_g'' at the stage times
-    (`_stage_times`; None: read from `args.motion`). Returns y1, the error estimate and Diffrax's dense
-    information (y0, y1 and the stage increments k_i = h f(t_i, y_i)).
+    (`_stage_times`; None: read from `args.motion`). Returns y1, the error
+    estimate and Diffrax's dense information (y0, y1 and the stage increments
+    k_i = h f(t_i, y_i)).
     """
     h = t1 - t0
     times = _stage_times(tableau, t0, t1)
