@@ -28,6 +28,7 @@ from ._isolators import AbstractIsolator
 from ._misc import computed_once, where_lanes
 from ._model import (
     event_conditions,
+    is_active,
     move_on,
     moves_on,
     quiet_level,
@@ -165,11 +166,8 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     args0 = args1 = args
     if _unrollable(solver):
         ground = None
-        if motion.sample_count == 0:
-            # A closed form: x_g'' at the stage times and at t1 in one
-            # evaluation (one copy of it in the program, not one a stage).
-            # A record is read at each stage: its reads are gathers, and
-            # results stay the same to the last bit in every program.
+        if not motion.read_per_stage:
+            # x_g'' at the stage times and at t1 in one evaluation.
             times = jnp.stack(_stage_times(solver.tableau, t0, t1) + [t1])
             ground = computed_once(jax.vmap(motion.acceleration)(times))
             args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
@@ -500,7 +498,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion
     )
     moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
-    active = ~c.done & (c.segments < opts.max_segments)
+    active = is_active(c, opts)
     new = where_lanes(a.moves_on, moved, c)
     ends = active & ~a.moves_on
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).

@@ -86,6 +86,10 @@ class AbstractGroundMotion(AbstractChecked):
     # One motion's data are shared by every cell of a map (a record's samples),
     # not gathered per cell.
     shared_by_cells: ClassVar[bool] = False
+    # The flat loop of maps reads x_g'' at each stage of a step (True), or at
+    # all of a step's stage times in one vectorized evaluation (False: one copy
+    # of a closed form in the program, not one a stage).
+    read_per_stage: ClassVar[bool] = False
 
     @property
     def batch_shape(self) -> tuple[int, ...]:

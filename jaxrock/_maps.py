@@ -30,7 +30,7 @@ from ._misc import (
     positive,
     where_lanes,
 )
-from ._model import Carry, check_base_and_motion, initial_carry, response
+from ._model import Carry, check_base_and_motion, initial_carry, is_active, response
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
@@ -292,7 +292,7 @@ class _Chunk(eqx.Module):
         blocks = Block(self.slenderness, self.size)
         final = carries
         if self.base.free_rocking_closed_form:
-            ready = ~carries.done & (carries.segments < self.opts.max_segments)
+            ready = is_active(carries, self.opts)
             ready = ready & ~self.pilot & (carries.phase != Phase.TRANSLATION)
             final = free_rocking(
                 carries, blocks, self.base, self.duration, self.opts, ready

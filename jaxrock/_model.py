@@ -119,6 +119,11 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
     )
 
 
+def is_active(c: Carry, opts):
+    """The analysis goes on: not done, and within `opts.max_segments`."""
+    return ~c.done & (c.segments < opts.max_segments)
+
+
 def segment_end(c: Carry, motion, duration):
     """(shaking, end of the segment): a segment stops at the end of the
     excitation (the step limit that keeps uplifts from hiding inside a step is
@@ -131,7 +136,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     """What a segment (or a step of the flat loop) starts from: whether the lane
     is active, the vector field's arguments, the event conditions, the end of
     the segment, the largest step (None: no limit) and the step-size controller."""
-    active = ~c.done & (c.segments < opts.max_segments)
+    active = is_active(c, opts)
     args = Args(
         block,
         base,
@@ -499,7 +504,7 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     segment's start: roots closer than that end as one event (the first in
     order).
     """
-    active = ~c.done & (c.segments < opts.max_segments)
+    active = is_active(c, opts)
     end = _classify_end(c, sol, motion, duration, opts, active)
     if limit is None:
         _, args, named, *_ = segment_setup(c, block, base, motion, duration, opts)
@@ -527,7 +532,7 @@ def moves_on(c: Carry, t, failed, motion, duration, opts):
     only moves the state on: its lane is active, the solver did not fail
     (`failed`), and the step ends before the segment's end and within
     `max_steps`. `transition` then reduces to `move_on`."""
-    active = ~c.done & (c.segments < opts.max_segments)
+    active = is_active(c, opts)
     cut = t < segment_end(c, motion, duration)[1]
     return active & ~failed & cut & (c.segment_steps < opts.max_steps)
 

@@ -73,6 +73,10 @@ class Record(AbstractGroundMotion):
     # else None.
     index: Int[Array, ""] | None
     shared_by_cells: ClassVar[bool] = True
+    # Read at each stage: reads at all stage times at once were fused
+    # differently from program to program (last-bit differences between a
+    # suite's cell and its record's own map).
+    read_per_stage: ClassVar[bool] = True
     name: str | tuple | None = eqx.field(static=True)
     azimuth: float | tuple | None = eqx.field(static=True)
     rsn: int | tuple | None = eqx.field(static=True)

@@ -24,6 +24,7 @@ from ._model import (
     Carry,
     check_base_and_motion,
     initial_carry,
+    is_active,
     response,
     segment_setup,
     transition,
@@ -79,7 +80,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
     """The whole analysis as one traceable function (for `jit`, `vmap`, `jacfwd`)."""
 
     def cond(c):
-        return ~c.done & (c.segments < opts.max_segments)
+        return is_active(c, opts)
 
     def body(c):
         sol = _solve_segment(c, block, base, motion, duration, opts)
