@@ -127,26 +127,32 @@ def _map_chunk(
         opts,
         pilot,
     )
-    n = chunk.n
-    width = min(width, n)
-    cell0 = jnp.where(jnp.arange(width) < count, jnp.arange(width), n)
-    per_lane0 = chunk.gather(cell0)
-    c0 = chunk.start(cell0, per_lane0)
+    n, width = chunk.n, min(width, chunk.n)
+    # Every lane starts idle and finished: the loop's first `refill` gives
+    # them the first cells.
+    idle = jnp.full(width, n)
+    zeros = lambda f, *x: jax.tree_util.tree_map(  # noqa: E731
+        lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(f, *x)
+    )
+    per_lane0 = zeros(chunk.gather, idle)
+    carry0 = zeros(chunk.start, idle, per_lane0)
     zero = jnp.asarray(0)
     state = _Lanes(
-        carry=c0,
-        cell=cell0,
-        queue=jnp.asarray(width),
+        carry=carry0,
+        cell=idle,
+        queue=zero,
         out=jax.tree_util.tree_map(
-            lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), c0
+            lambda x: jnp.zeros((n,) + x.shape[1:], x.dtype), carry0
         ),
         executed=zero,
         useful=zero,
         per_lane=per_lane0,
-        finished=jnp.zeros_like(cell0, dtype=bool),
+        finished=jnp.ones(width, dtype=bool),
     )
     state = jax.lax.while_loop(
-        lambda s: jnp.any(s.cell < n), lambda s: chunk.refill(s, count), state
+        lambda s: jnp.any(s.cell < n) | (s.queue < count),
+        lambda s: chunk.steps(chunk.refill(s, count)),
+        state,
     )
     return (*chunk.responses(state.out), state.executed, state.useful)
 
@@ -260,12 +266,13 @@ class _Chunk(eqx.Module):
             )
 
         state = eqx.tree_at(lambda s: s.finished, state, jnp.zeros_like(state.finished))
-        return jax.lax.while_loop(lambda s: ~jnp.any(s.finished), body, state)
+        return jax.lax.while_loop(
+            lambda s: ~jnp.any(s.finished) & jnp.any(s.cell < self.n), body, state
+        )
 
     def refill(self, state: _Lanes, count) -> _Lanes:
-        """Steps until lanes finish; they write their results and take the
-        queue's next cells (of the first `count`)."""
-        state = self.steps(state)
+        """The lanes that finished write their results (idle lanes nowhere)
+        and take the queue's next cells (of the first `count`)."""
         finished, cell, c = state.finished, state.cell, state.carry
         index = jnp.where(finished, cell, self.n)  # other lanes write nowhere
         out = jax.tree_util.tree_map(
