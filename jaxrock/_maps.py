@@ -914,7 +914,9 @@ def _make_program(treedef, specs):
         fields = tuple(getattr(responses, f) for f in _FIELDS)
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
-    traced = jax.jit(map_chunk)
+    args = jax.tree_util.tree_unflatten(treedef, specs)
+    options = _compiler_options(base=args[2], motion=args[3])
+    traced = jax.jit(map_chunk, compiler_options=options)
     static = _cache.static_key(treedef)
     if static is None or _cache.traced_folder() is None:
         return traced
@@ -930,7 +932,24 @@ def _make_program(treedef, specs):
     def map_chunk_exported(*leaves):
         return program.call(*leaves)
 
-    return jax.jit(map_chunk_exported)
+    return jax.jit(map_chunk_exported, compiler_options=options)
+
+
+def _compiler_options(base: AbstractIsolator, motion: AbstractGroundMotion) -> dict:
+    """XLA's options for a chunk loop on `base` under `motion`.
+
+    On the CPU, a loop under a closed-form motion on a base without a
+    hysteretic state compiles with XLA's loop emitters instead of its fusion
+    emitters: on the paper's map it compiles about 1 s faster (fixed base,
+    4.5 against 3.5 s; linear isolator, 4.0 against 3.2 s) and runs as fast
+    (the fixed base's loop within 13%). Records' reads of their samples and a
+    friction pendulum's z run 1.3-1.6x faster with the fusion emitters.
+    """
+    if jax.default_backend() != "cpu":
+        return {}
+    if motion.sample_count > 0 or base.hysteretic_state:
+        return {}
+    return {"xla_cpu_use_fusion_emitters": False}
 
 
 class _ChunkRunner:
