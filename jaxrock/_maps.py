@@ -703,6 +703,16 @@ def _cells_of(module, shape, index):
 
 # Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
 LANE_WIDTH = 64
+# ... under a recorded motion, whose cells' work is even: 128 lanes run the
+# friction pendulum's Pacoima map in 0.84x the time of 64 (the fixed base's in
+# 0.96x, the linear isolator's in the same); under a pulse 128 lanes gain
+# nothing (a friction pendulum's map takes 1.06x as long).
+RECORD_LANE_WIDTH = 128
+
+
+def _lane_width(motion: AbstractGroundMotion) -> int:
+    """Lanes of a chunk loop under `motion`."""
+    return RECORD_LANE_WIDTH if motion.sample_count > 0 else LANE_WIDTH
 
 
 # Signatures of the chunk loops compiled so far (see `_signature`).
@@ -887,7 +897,7 @@ _PROGRAMS_LOCK = threading.Lock()
 
 def _chunk_program(treedef, leaves):
     """`_map_chunk` for arguments of the structure `treedef` (static fields
-    included) and the shapes of `leaves` (jax Arrays), on `LANE_WIDTH` lanes,
+    included) and the shapes of `leaves` (jax Arrays), on `_lane_width` lanes,
     as a function of the leaves that returns the responses' `_FIELDS`, the
     carries' leaves, and the lane-steps executed and useful.
 
@@ -908,20 +918,22 @@ def _chunk_program(treedef, leaves):
 def _make_program(treedef, specs):
     """`_chunk_program`'s function, traced here or read from the folder."""
 
+    args = jax.tree_util.tree_unflatten(treedef, specs)
+    options = _compiler_options(base=args[2], motion=args[3])
+    width = _lane_width(args[3])
+
     def map_chunk(*leaves):
         args = jax.tree_util.tree_unflatten(treedef, leaves)
-        responses, carries, executed, useful = _map_chunk(*args, LANE_WIDTH)
+        responses, carries, executed, useful = _map_chunk(*args, width)
         fields = tuple(getattr(responses, f) for f in _FIELDS)
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
-    args = jax.tree_util.tree_unflatten(treedef, specs)
-    options = _compiler_options(base=args[2], motion=args[3])
     traced = jax.jit(map_chunk, compiler_options=options)
     static = _cache.static_key(treedef)
     if static is None or _cache.traced_folder() is None:
         return traced
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = json.dumps([static, shapes, LANE_WIDTH])
+    key = json.dumps([static, shapes, width])
     try:
         program = _cache.exported(
             "map_chunk", key, lambda: jax.export.export(traced)(*specs)
@@ -1039,14 +1051,14 @@ class _ChunkRunner:
         return out
 
 
-def _chunk_plan(n: int, chunk_size: int | None) -> tuple[int, int, int]:
+def _chunk_plan(n: int, chunk_size: int | None, width: int) -> tuple[int, int, int]:
     """(cells a chunk, its padded size, chunks) of a map of n cells. Chunks are
     padded to a power of two (at most `chunk_size`): maps of other sizes reuse
     a handful of compiles. Small maps all take one chunk shape, that of a full
     set of lanes (padding costs nothing but idle lanes; a compile costs
     seconds)."""
     chunk = n if chunk_size is None else min(chunk_size, n)
-    padded = max(1 << (chunk - 1).bit_length(), LANE_WIDTH)
+    padded = max(1 << (chunk - 1).bit_length(), width)
     padded = padded if chunk_size is None else min(padded, chunk_size)
     return chunk, padded, -(-n // chunk)
 
@@ -1099,13 +1111,13 @@ def behavior_map(
     e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
     then has shape base batch + pulse batch + (n_slenderness, n_size).
     Cells run `chunk_size` at a time (`None`: all at once) through one compiled
-    loop on `LANE_WIDTH` (64) vmapped lanes; each iteration advances every lane by one
-    solver step, and a lane that finishes takes the chunk's next cell (the
-    "flat loop", `_flat.py`). The pure-translation phase before uplift runs
-    once per base, motion and slenderness (see `_map_chunk`), and the cells,
-    ordered by where that leaves them, are dealt to the chunks in turn (equal
-    work per chunk). Chunks run one thread per CPU core. `progress`
-    shows a tqdm bar (default: when there is more than one chunk). New grids,
+    loop on 64 vmapped lanes (128 under a record); each iteration advances
+    every lane by one solver step, and a lane that finishes takes the chunk's
+    next cell (the "flat loop", `_flat.py`). The pure-translation phase before
+    uplift runs once per base, motion and slenderness (see `_map_chunk`), and
+    the cells, ordered by where that leaves them, are dealt to the chunks in
+    turn (equal work per chunk). Chunks run one thread per CPU core.
+    `progress` shows a tqdm bar (default: when there is more than one chunk). New grids,
     pulses or isolator parameters reuse the compile.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
@@ -1134,7 +1146,7 @@ def behavior_map(
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size)
+    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, _lane_width(motion))
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
