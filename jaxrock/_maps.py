@@ -704,9 +704,9 @@ def _cells_of(module, shape, index):
 # Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
 LANE_WIDTH = 64
 # ... under a recorded motion, whose cells' work is even: 128 lanes run the
-# friction pendulum's Pacoima map in 0.84x the time of 64 (the fixed base's in
-# 0.96x, the linear isolator's in the same); under a pulse 128 lanes gain
-# nothing (a friction pendulum's map takes 1.06x as long).
+# Pacoima maps in 0.83x (friction pendulum), 0.88x (fixed base) and 0.9-1.0x
+# (linear isolator) the time of 64; under a pulse 128 lanes gain nothing (a
+# friction pendulum's map takes 1.06x as long).
 RECORD_LANE_WIDTH = 128
 
 
@@ -1117,8 +1117,8 @@ def behavior_map(
     uplift runs once per base, motion and slenderness (see `_map_chunk`), and
     the cells, ordered by where that leaves them, are dealt to the chunks in
     turn (equal work per chunk). Chunks run one thread per CPU core.
-    `progress` shows a tqdm bar (default: when there is more than one chunk). New grids,
-    pulses or isolator parameters reuse the compile.
+    `progress` shows a tqdm bar (default: when there is more than one chunk).
+    New grids, pulses or isolator parameters reuse the compile.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
     only the missing chunks, dealt the cells as the first run dealt them).
