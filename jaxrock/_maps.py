@@ -1056,10 +1056,15 @@ def _chunk_plan(n: int, chunk_size: int | None, width: int) -> tuple[int, int, i
     padded to a power of two (at most `chunk_size`): maps of other sizes reuse
     a handful of compiles. Small maps all take one chunk shape, that of a full
     set of lanes (padding costs nothing but idle lanes; a compile costs
-    seconds)."""
+    seconds). A chunk of at least a lane width is padded to a whole number of
+    lane widths: XLA's vectorized loops over its cells then leave no
+    remainder, which they would compute with other roundings, and a cell's
+    position in its chunk changes none of its bits."""
     chunk = n if chunk_size is None else min(chunk_size, n)
     padded = max(1 << (chunk - 1).bit_length(), width)
-    padded = padded if chunk_size is None else min(padded, chunk_size)
+    if chunk_size is not None:
+        whole = min(chunk_size, width)
+        padded = min(padded, -(-chunk_size // whole) * whole)
     return chunk, padded, -(-n // chunk)
 
 
