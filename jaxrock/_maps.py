@@ -131,11 +131,8 @@ def _map_chunk(
     # Every lane starts idle and finished: the loop's first `refill` gives
     # them the first cells.
     idle = jnp.full(width, n)
-    zeros = lambda f, *x: jax.tree_util.tree_map(  # noqa: E731
-        lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(f, *x)
-    )
-    per_lane0 = zeros(chunk.gather, idle)
-    carry0 = zeros(chunk.start, idle, per_lane0)
+    per_lane0 = _zeros_of(chunk.gather, idle)
+    carry0 = _zeros_of(chunk.start, idle, per_lane0)
     zero = jnp.asarray(0)
     state = _Lanes(
         carry=carry0,
@@ -155,6 +152,13 @@ def _map_chunk(
         state,
     )
     return (*chunk.responses(state.out), state.executed, state.useful)
+
+
+def _zeros_of(f, *args):
+    """Zeros shaped as the output of f(*args), which is traced, not computed."""
+    return jax.tree_util.tree_map(
+        lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(f, *args)
+    )
 
 
 class _Chunk(eqx.Module):
