@@ -3,7 +3,7 @@
 Importing jaxrock enables JAX's float64 mode (`jax_enable_x64`): every result
 is float64 unless you turn it off again. It also turns on JAX's persistent
 compilation cache in `~/.cache/jaxrock/xla` (a second run reuses the compiled
-programs of the first, and maps their traced loops), unless JAX's cache is
+programs of the first, and maps their compiled loops), unless JAX's cache is
 configured already; `JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off`
 turns it off.
 """

@@ -1,7 +1,7 @@
 """JAX's persistent compilation cache, on by default in a per-user folder,
 so that a second run of a map or an analysis reuses the compiled programs of
-the first; and in its `traced/` folder the traced chunk loops of maps
-(`jax.export`), so that a second run of a map skips tracing as well."""
+the first; and in its `programs/` folder the compiled chunk loops of maps,
+whole, so that a second run of a map skips tracing and lowering as well."""
 
 import functools
 import hashlib
@@ -10,17 +10,20 @@ import io
 import json
 import os
 import pickle
+import platform
 import threading
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 
 import jax
+from jax.experimental import serialize_executable
 
 # The environment variable that moves the cache (a folder) or turns it off
 # ("off", "0", "none" or "false").
 ENVIRONMENT = "JAXROCK_CACHE"
 _OFF = {"off", "0", "none", "false", "no"}
-# Where traced code may come from: a traced program is kept only when its
+# Where a kept program's code may come from: it is kept only when its
 # static structure names no class or function from elsewhere (a user's own
 # isolator or solver: its code could change unseen), and these packages'
 # versions (jaxrock's: its source files) are part of its key.
@@ -60,18 +63,18 @@ def enable_compilation_cache() -> str | None:
     return _FOLDER
 
 
-def traced_folder() -> Path | None:
-    """`traced/` in jaxrock's cache folder, where traced programs are kept;
-    None when JAX's cache is not jaxrock's (turned off, or the user's own,
-    which jaxrock leaves as it is)."""
+def program_folder() -> Path | None:
+    """`programs/` in jaxrock's cache folder, where compiled chunk loops are
+    kept; None when JAX's cache is not jaxrock's (turned off, or the user's
+    own, which jaxrock leaves as it is)."""
     if _FOLDER is None or jax.config.jax_compilation_cache_dir != _FOLDER:
         return None
-    return Path(_FOLDER) / "traced"
+    return Path(_FOLDER) / "programs"
 
 
 @functools.cache
 def code_version() -> str:
-    """What traced code depends on besides its arguments: the versions of
+    """What a kept program depends on besides its arguments: the versions of
     `_PACKAGES`, a digest of jaxrock's source files (an edited checkout is
     another version) and the platform."""
     digest = hashlib.sha256()
@@ -118,38 +121,67 @@ def _digest(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def exported(name: str, key: str, export: Callable[[], jax.export.Exported]):
-    """The program `export()` returns, kept in `traced_folder()`.
+@functools.cache
+def _machine() -> list[str]:
+    """What compiled code depends on besides the program: the device, XLA's
+    flags and the processor (its instruction set extensions, which XLA's CPU
+    code uses)."""
+    device = jax.local_devices()[0]
+    flags = ""
+    if platform.system() == "Linux":
+        try:
+            with open("/proc/cpuinfo") as info:
+                flags = next((x for x in info if x.startswith("flags")), "")
+        except OSError:
+            pass
+    return [
+        device.platform,
+        device.device_kind,
+        device.client.platform_version,
+        os.environ.get("XLA_FLAGS", ""),
+        platform.machine(),
+        platform.processor(),
+        _digest(flags.encode()),
+    ]
 
-    Its file, `NAME-DIGEST.jaxexport`, is keyed by `key` (what the program
+
+def compiled(name: str, key: str, lower: Callable[[], jax.stages.Lowered]):
+    """The program `lower()` gives, compiled (`jax.stages.Compiled`), kept
+    in `program_folder()` and read back by later processes.
+
+    Its file, `NAME-DIGEST.jaxprogram`, is keyed by `key` (what the program
     depends on besides code: its static structure, shapes, ...), by
-    `code_version()` and by the settings that change what tracing makes
-    (float64, matmul precision, Equinox's error mode). A kept program is read
-    instead of calling `export`; a file that is damaged or holds another key
-    is replaced. Without a folder, `export()`."""
-    folder = traced_folder()
-    if folder is None:
-        return export()
+    `code_version()`, by the settings that change what tracing makes
+    (float64, matmul precision, Equinox's error mode) and by the machine
+    (`_machine`). A kept program is loaded instead of calling `lower` and
+    compiling; a file that is damaged or holds another key is replaced.
+    Without a folder, `lower().compile()`. Kept only for processes with one
+    local device (its code is bound to it)."""
+    folder = program_folder()
+    if folder is None or len(jax.local_devices()) != 1:
+        return lower().compile()
     settings = [
         jax.config.jax_enable_x64,
         str(jax.config.jax_default_matmul_precision),
         os.environ.get("EQX_ON_ERROR", ""),
     ]
-    key = json.dumps([code_version(), settings, key])
-    path = folder / f"{name}-{_digest(key.encode())[:32]}.jaxexport"
+    key = json.dumps([code_version(), settings, _machine(), key])
+    path = folder / f"{name}-{_digest(key.encode())[:32]}.jaxprogram"
     try:
         head, payload = path.read_bytes().split(b"\n", 1)
         if json.loads(head) == {"key": key, "sha256": _digest(payload)}:
-            return jax.export.deserialize(bytearray(payload))
-    except Exception:  # missing or damaged: export again
+            saved = pickle.loads(zlib.decompress(payload))
+            return serialize_executable.deserialize_and_load(*saved)
+    except Exception:  # missing or damaged: compile again
         pass
-    program = export()
+    program = lower().compile()
     partial = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}")
     try:
-        payload = program.serialize()
+        saved = serialize_executable.serialize(program)
+        payload = zlib.compress(pickle.dumps(saved), 1)
         head = json.dumps({"key": key, "sha256": _digest(payload)})
         folder.mkdir(parents=True, exist_ok=True)
-        partial.write_bytes(head.encode() + b"\n" + bytes(payload))
+        partial.write_bytes(head.encode() + b"\n" + payload)
         os.replace(partial, path)  # whole files only, also between processes
     except Exception:  # a read-only folder...: the program is used, not kept
         partial.unlink(missing_ok=True)

@@ -906,11 +906,11 @@ def _chunk_program(treedef, leaves):
     carries' leaves, and the lane-steps executed and useful.
 
     Made once per process. With jaxrock's cache folder
-    (`_cache.traced_folder`), the traced program is exported (`jax.export`)
-    and kept there, and a later process reads it instead of tracing again
-    (JAX's compilation cache beside it holds its compiled code). A structure
-    that names code outside jaxrock and its dependencies (a user's isolator
-    class), or a loop that cannot be exported, is traced in every process.
+    (`_cache.program_folder`), the compiled program is kept there, and a
+    later process loads it instead of tracing, lowering and compiling again.
+    A structure that names code outside jaxrock and its dependencies (a
+    user's isolator class), or a loop whose compiled code cannot be kept, is
+    traced in every process.
     """
     specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
     with _PROGRAMS_LOCK:
@@ -920,7 +920,7 @@ def _chunk_program(treedef, leaves):
 
 
 def _make_program(treedef, specs):
-    """`_chunk_program`'s function, traced here or read from the folder."""
+    """`_chunk_program`'s function, traced here or loaded from the folder."""
 
     args = jax.tree_util.tree_unflatten(treedef, specs)
     options = _compiler_options(base=args[2], motion=args[3])
@@ -934,21 +934,14 @@ def _make_program(treedef, specs):
 
     traced = jax.jit(map_chunk, compiler_options=options)
     static = _cache.static_key(treedef)
-    if static is None or _cache.traced_folder() is None:
+    if static is None or _cache.program_folder() is None:
         return traced
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = json.dumps([static, shapes, width])
+    key = json.dumps([static, shapes, width, options])
     try:
-        program = _cache.exported(
-            "map_chunk", key, lambda: jax.export.export(traced)(*specs)
-        )
-    except Exception:  # not exportable (a host callback...): traced each time
+        return _cache.compiled("map_chunk", key, lambda: traced.lower(*specs))
+    except Exception:  # not serializable (a host callback...): traced each time
         return traced
-
-    def map_chunk_exported(*leaves):
-        return program.call(*leaves)
-
-    return jax.jit(map_chunk_exported, compiler_options=options)
 
 
 def _compiler_options(base: AbstractIsolator, motion: AbstractGroundMotion) -> dict:

@@ -1,6 +1,6 @@
 """The persistent compilation cache: on by default in a per-user folder,
 moved or turned off by JAXROCK_CACHE, and never over a cache the user
-configures; the traced chunk loops of maps kept beside it."""
+configures; the compiled chunk loops of maps kept beside it."""
 
 import os
 import subprocess
@@ -17,7 +17,7 @@ from jaxrock import _cache, _maps
 
 PROBE = (
     "import jaxrock, jax; print(jax.config.jax_compilation_cache_dir, "
-    "jaxrock._cache.traced_folder())"
+    "jaxrock._cache.program_folder())"
 )
 
 
@@ -38,44 +38,44 @@ def _cache_dir(tmp_path, **env):
 @pytest.mark.parametrize(
     "env, expected",
     [
-        ({}, "{tmp}/home-cache/jaxrock/xla {tmp}/home-cache/jaxrock/xla/traced"),
-        ({"JAXROCK_CACHE": "{tmp}/mine"}, "{tmp}/mine {tmp}/mine/traced"),
+        ({}, "{tmp}/home-cache/jaxrock/xla {tmp}/home-cache/jaxrock/xla/programs"),
+        ({"JAXROCK_CACHE": "{tmp}/mine"}, "{tmp}/mine {tmp}/mine/programs"),
         ({"JAXROCK_CACHE": "off"}, "None None"),
         ({"JAX_COMPILATION_CACHE_DIR": "{tmp}/theirs"}, "{tmp}/theirs None"),
     ],
     ids=["default", "moved", "off", "the user's own"],
 )
 def test_compilation_cache_folder(tmp_path, env, expected):
-    """The folders of compiled and of traced programs; jaxrock keeps no
-    traced programs in a cache the user configures."""
+    """The folders of JAX's compiled programs and of jaxrock's chunk loops;
+    jaxrock keeps no chunk loops in a cache the user configures."""
     env = {k: v.format(tmp=tmp_path) for k, v in env.items()}
     assert _cache_dir(tmp_path, **env) == expected.format(tmp=tmp_path)
 
 
-def test_exported_programs_are_kept_read_and_replaced(monkeypatch, tmp_path):
-    monkeypatch.setattr(_cache, "traced_folder", lambda: tmp_path)
-    exports = []
+def test_compiled_programs_are_kept_read_and_replaced(monkeypatch, tmp_path):
+    monkeypatch.setattr(_cache, "program_folder", lambda: tmp_path)
+    lowered = []
 
-    def export():
-        exports.append(1)
-        return jax.export.export(jax.jit(lambda x: jnp.sin(x) * 2.0))(
+    def lower():
+        lowered.append(1)
+        return jax.jit(lambda x: jnp.sin(x) * 2.0).lower(
             jax.ShapeDtypeStruct((3,), jnp.float64)
         )
 
     x = jnp.array([0.1, 0.2, 0.3])
-    first = _cache.exported("f", "key", export)
-    (path,) = tmp_path.glob("f-*.jaxexport")
-    again = _cache.exported("f", "key", export)  # read: not exported again
-    assert len(exports) == 1
-    np.testing.assert_array_equal(again.call(x), first.call(x))
-    np.testing.assert_array_equal(again.call(x), 2.0 * np.sin(np.asarray(x)))
-    _cache.exported("f", "another key", export)  # another file
-    assert len(exports) == 2 and len(list(tmp_path.glob("f-*"))) == 2
+    first = _cache.compiled("f", "key", lower)
+    (path,) = tmp_path.glob("f-*.jaxprogram")
+    again = _cache.compiled("f", "key", lower)  # loaded: not lowered again
+    assert len(lowered) == 1
+    np.testing.assert_array_equal(again(x), first(x))
+    np.testing.assert_array_equal(again(x), 2.0 * np.sin(np.asarray(x)))
+    _cache.compiled("f", "another key", lower)  # another file
+    assert len(lowered) == 2 and len(list(tmp_path.glob("f-*"))) == 2
     path.write_bytes(path.read_bytes()[:-100])  # a damaged file
-    _cache.exported("f", "key", export)
-    assert len(exports) == 3
-    _cache.exported("f", "key", export)  # replaced by a whole one
-    assert len(exports) == 3
+    _cache.compiled("f", "key", lower)
+    assert len(lowered) == 3
+    _cache.compiled("f", "key", lower)  # replaced by a whole one
+    assert len(lowered) == 3
 
 
 def test_static_key_refuses_code_outside_jaxrock():
@@ -90,10 +90,10 @@ def test_static_key_refuses_code_outside_jaxrock():
     assert _cache.static_key(jax.tree_util.tree_structure(Mine(1.0))) is None
 
 
-def test_map_reads_its_traced_chunk_loop(monkeypatch, tmp_path, linear_map):
+def test_map_loads_its_compiled_chunk_loop(monkeypatch, tmp_path, linear_map):
     """A process that finds the map's chunk loop in the folder runs it
     without tracing, and gets the same map to the bit."""
-    monkeypatch.setattr(_cache, "traced_folder", lambda: tmp_path)
+    monkeypatch.setattr(_cache, "program_folder", lambda: tmp_path)
     traces, original = [], _maps._map_chunk
     monkeypatch.setattr(
         _maps, "_map_chunk", lambda *a: traces.append(1) or original(*a)
@@ -112,7 +112,7 @@ def test_map_reads_its_traced_chunk_loop(monkeypatch, tmp_path, linear_map):
             )
         )
     assert len(traces) == 1  # the first map traced (pilots and cells share it)
-    assert len(list(tmp_path.glob("map_chunk-*.jaxexport"))) == 1
+    assert len(list(tmp_path.glob("map_chunk-*.jaxprogram"))) == 1
     for bm in maps:
         for k in _maps._FIELDS:
             np.testing.assert_array_equal(getattr(bm, k), getattr(linear_map, k))
