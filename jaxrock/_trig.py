@@ -11,6 +11,8 @@ Cody-Waite's by pi/2 with the constants of fdlibm, exact for |x| < 2^19 pi/2
 (tests/test_trig.py). Derivatives are exact (d sin = cos dx, d cos = -sin dx).
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,6 +52,14 @@ def _horner(z, coefficients):
 @jax.custom_jvp
 def sincos(x):
     """(sin x, cos x) of a float64 array, for |x| < LIMIT (else inaccurate)."""
+    return _sincos(x)
+
+
+# Traced once per shape and dtype, then inlined from JAX's cache: a map's chunk
+# loop calls `sincos` about 40 times, and traces 0.25 s faster (of 1 s) than
+# when each call traces the body again.
+@functools.partial(jax.jit, inline=True)
+def _sincos(x):
     n = jnp.round(x * (2.0 / np.pi))
     r = (x - n * _PIO2_1) - n * _PIO2_2
     tail = n * _PIO2_2T
