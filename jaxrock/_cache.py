@@ -121,6 +121,27 @@ def _digest(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+# Hits of JAX's persistent cache in each thread (`_cache_hits`).
+_HITS = threading.local()
+
+
+def _count_hit(event: str, **kwargs) -> None:
+    if event == "/jax/compilation_cache/cache_hits":
+        _HITS.count = _cache_hits() + 1
+
+
+@functools.cache
+def _listen() -> None:
+    jax.monitoring.register_event_listener(_count_hit)
+
+
+def _cache_hits() -> int:
+    """Executables this thread has loaded from JAX's persistent cache since
+    the first call."""
+    _listen()
+    return getattr(_HITS, "count", 0)
+
+
 @functools.cache
 def _machine() -> list[str]:
     """What compiled code depends on besides the program: the device, XLA's
@@ -145,7 +166,7 @@ def _machine() -> list[str]:
     ]
 
 
-def compiled(name: str, key: str, lower: Callable[[], jax.stages.Lowered]):
+def compiled(name: str, key: str | None, lower: Callable[[], jax.stages.Lowered]):
     """The program `lower()` gives, compiled (`jax.stages.Compiled`), kept
     in `program_folder()` and read back by later processes.
 
@@ -155,10 +176,9 @@ def compiled(name: str, key: str, lower: Callable[[], jax.stages.Lowered]):
     (float64, matmul precision, Equinox's error mode) and by the machine
     (`_machine`). A kept program is loaded instead of calling `lower` and
     compiling; a file that is damaged or holds another key is replaced.
-    Without a folder, `lower().compile()`. Kept only for processes with one
-    local device (its code is bound to it)."""
+    Without a folder or a key (None: not to be kept), `lower().compile()`."""
     folder = program_folder()
-    if folder is None or len(jax.local_devices()) != 1:
+    if folder is None or key is None:
         return lower().compile()
     settings = [
         jax.config.jax_enable_x64,
@@ -174,7 +194,12 @@ def compiled(name: str, key: str, lower: Callable[[], jax.stages.Lowered]):
             return serialize_executable.deserialize_and_load(*saved)
     except Exception:  # missing or damaged: compile again
         pass
+    hits = _cache_hits()
     program = lower().compile()
+    if _cache_hits() != hits:
+        # Loaded from JAX's cache: jaxlib serializes such code without its
+        # kernels (it fails when run), so only a program compiled here is kept.
+        return program
     partial = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}")
     try:
         saved = serialize_executable.serialize(program)

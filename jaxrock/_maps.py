@@ -894,9 +894,14 @@ def _compute_chunk(task, device=None) -> dict:
     return out | {"executed": np.asarray(executed), "useful": np.asarray(useful)}
 
 
-# The chunk loops of this process (see `_chunk_program`).
+# The chunk loops of this process (see `_chunk_program`), each made once: a
+# map in another thread that needs a loop being made waits for it.
 _PROGRAMS: dict = {}
+_PROGRAM_LOCKS: dict = {}
 _PROGRAMS_LOCK = threading.Lock()
+# Tracing and lowering are Python, under the GIL: maps in threads take turns,
+# and one traces while another compiles (XLA compiles without the GIL).
+_TRACING = threading.Lock()
 
 
 def _chunk_program(treedef, leaves):
@@ -905,22 +910,26 @@ def _chunk_program(treedef, leaves):
     as a function of the leaves that returns the responses' `_FIELDS`, the
     carries' leaves, and the lane-steps executed and useful.
 
-    Made once per process. With jaxrock's cache folder
-    (`_cache.program_folder`), the compiled program is kept there, and a
-    later process loads it instead of tracing, lowering and compiling again.
-    A structure that names code outside jaxrock and its dependencies (a
-    user's isolator class), or a loop whose compiled code cannot be kept, is
-    traced in every process.
+    Made once per process, compiled for the default device. With jaxrock's
+    cache folder (`_cache.program_folder`), the compiled program is kept
+    there, and a later process loads it instead of tracing, lowering and
+    compiling again. A structure that names code outside jaxrock and its
+    dependencies (a user's isolator class) is compiled in every process. With
+    several local devices the loop is a `jax.jit` function that compiles for
+    each device its chunks go to.
     """
     specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
+    key = (treedef, specs)
     with _PROGRAMS_LOCK:
-        if (treedef, specs) not in _PROGRAMS:
-            _PROGRAMS[treedef, specs] = _make_program(treedef, specs)
-        return _PROGRAMS[treedef, specs]
+        lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
+    with lock:
+        if key not in _PROGRAMS:
+            _PROGRAMS[key] = _make_program(treedef, specs)
+        return _PROGRAMS[key]
 
 
 def _make_program(treedef, specs):
-    """`_chunk_program`'s function, traced here or loaded from the folder."""
+    """`_chunk_program`'s function, compiled here or loaded from the folder."""
 
     args = jax.tree_util.tree_unflatten(treedef, specs)
     options = _compiler_options(base=args[2], motion=args[3])
@@ -933,15 +942,17 @@ def _make_program(treedef, specs):
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
     traced = jax.jit(map_chunk, compiler_options=options)
+    if len(jax.local_devices()) > 1:
+        return traced
+
+    def lower():
+        with _TRACING:
+            return traced.lower(*specs)
+
     static = _cache.static_key(treedef)
-    if static is None or _cache.program_folder() is None:
-        return traced
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = json.dumps([static, shapes, width, options])
-    try:
-        return _cache.compiled("map_chunk", key, lambda: traced.lower(*specs))
-    except Exception:  # not serializable (a host callback...): traced each time
-        return traced
+    key = None if static is None else json.dumps([static, shapes, width, options])
+    return _cache.compiled("map_chunk", key, lower)
 
 
 def _compiler_options(base: AbstractIsolator, motion: AbstractGroundMotion) -> dict:

@@ -14,6 +14,7 @@ import os
 import re
 import sys
 import textwrap
+from concurrent.futures import ThreadPoolExecutor
 
 # matplotlib picks the format from the suffix: these three are checked here so
 # that a typo fails before the computation, not at the end of it.
@@ -772,21 +773,24 @@ def _run_map(a) -> int:
     from jaxrock import plot
 
     bases = [base] if a.no_compare or a.base == "fixed" else [jr.FixedBase(), base]
-    maps = []
-    with _executor(a.scheduler) as executor:
-        for b in bases:
-            store = None if a.store is None else os.path.join(a.store, type(b).__name__)
-            bm = jr.behavior_map(
-                a.slenderness,
-                a.size,
-                b,
-                motion,
-                chunk_size=a.chunk_size,
-                store=store,
-                executor=executor,
-            )
-            print(bm.summary().replace(bm.motion, name))
-            maps.append(bm)
+
+    def behavior_map(b):
+        return jr.behavior_map(
+            a.slenderness,
+            a.size,
+            b,
+            motion,
+            chunk_size=a.chunk_size,
+            store=None if a.store is None else os.path.join(a.store, type(b).__name__),
+            executor=executor,
+        )
+
+    # The maps run at once, in threads: one traces its loop while another
+    # compiles, and compiles while another runs.
+    with _executor(a.scheduler) as executor, ThreadPoolExecutor(len(bases)) as pool:
+        maps = list(pool.map(behavior_map, bases))
+    for bm in maps:
+        print(bm.summary().replace(bm.motion, name))
     stem = os.path.splitext(out)[0]
     for b, bm in zip(bases, maps):
         bm.save(f"{stem}_{type(b).__name__}.npz")

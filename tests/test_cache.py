@@ -90,29 +90,57 @@ def test_static_key_refuses_code_outside_jaxrock():
     assert _cache.static_key(jax.tree_util.tree_structure(Mine(1.0))) is None
 
 
-def test_map_loads_its_compiled_chunk_loop(monkeypatch, tmp_path, linear_map):
-    """A process that finds the map's chunk loop in the folder runs it
-    without tracing, and gets the same map to the bit."""
-    monkeypatch.setattr(_cache, "program_folder", lambda: tmp_path)
-    traces, original = [], _maps._map_chunk
-    monkeypatch.setattr(
-        _maps, "_map_chunk", lambda *a: traces.append(1) or original(*a)
-    )
-    maps = []
-    for _ in range(2):
-        monkeypatch.setattr(_maps, "_PROGRAMS", {})  # as in a new process
-        maps.append(
-            jr.behavior_map(
-                [1.5, 2.5, 3.5, 5.0, 6.5],
-                [0.3, 1.0, 2.5],
-                jr.LinearIsolator(2.0, 0.35, 0.5),
-                jr.near_fault_pulse("San Fernando PCD/SN"),
-                chunk_size=4,
-                progress=False,
-            )
+MAP = """
+import sys
+import jax
+import numpy as np
+import jaxrock as jr
+events = []
+jax.monitoring.register_event_time_span_listener(
+    lambda event, start, end, **kw: events.append(event.rsplit("/", 1)[-1])
+    if "map_chunk" in kw.get("fun_name", "") else None
+)
+bm = jr.behavior_map(
+    [1.5, 2.5, 3.5, 5.0, 6.5], [0.3, 1.0, 2.5], jr.LinearIsolator(2.0, 0.35, 0.5),
+    jr.near_fault_pulse("San Fernando PCD/SN"), chunk_size=4, progress=False,
+)
+np.savez(sys.argv[1], **{k: getattr(bm, k) for k in sys.argv[2:]})
+print(events.count("jaxpr_trace_duration"), events.count("backend_compile_duration"))
+"""
+
+
+def test_map_loads_its_compiled_chunk_loop(tmp_path, linear_map):
+    """A new process that finds the map's compiled chunk loop in jaxrock's
+    folder runs it without tracing or compiling, and gets the same map to the
+    bit. A loop that JAX's cache gives (the folder's `programs/` deleted) is
+    run but not kept: jaxlib drops the kernels of such code when it
+    serializes it again."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith(("JAX_COMPILATION_CACHE", "JAX_PERSISTENT_CACHE"))
+    }
+    env["JAXROCK_CACHE"] = str(tmp_path / "cache")
+    programs = tmp_path / "cache" / "programs"
+
+    def run():
+        out = subprocess.run(
+            [sys.executable, "-c", MAP, str(tmp_path / "map.npz"), *_maps._FIELDS],
+            env=env,
+            capture_output=True,
+            text=True,
         )
-    assert len(traces) == 1  # the first map traced (pilots and cells share it)
-    assert len(list(tmp_path.glob("map_chunk-*.jaxprogram"))) == 1
-    for bm in maps:
+        assert out.returncode == 0, out.stderr
+        saved = np.load(tmp_path / "map.npz")
         for k in _maps._FIELDS:
-            np.testing.assert_array_equal(getattr(bm, k), getattr(linear_map, k))
+            np.testing.assert_array_equal(saved[k], getattr(linear_map, k))
+        traces, compiles = map(int, out.stdout.split())
+        return traces, compiles, len(list(programs.glob("map_chunk-*.jaxprogram")))
+
+    assert run() == (1, 1, 1)  # traced, compiled and kept
+    assert run() == (0, 0, 1)  # loaded
+    for path in programs.iterdir():
+        path.unlink()
+    # traced, then loaded from JAX's cache (which JAX times as a compile), and
+    # not kept
+    assert run() == (1, 1, 0)
