@@ -719,24 +719,32 @@ def _lane_width(motion: AbstractGroundMotion) -> int:
     return RECORD_LANE_WIDTH if motion.sample_count > 0 else LANE_WIDTH
 
 
-# Signatures of the chunk loops compiled so far (see `_signature`).
-_COMPILED: set = set()
+# Cells a chunk holds by default when chunks are units of work for a store or
+# an executor (`_chunk_size`), and at most otherwise.
+CHUNK_SIZE = 610
+MAX_CHUNK_SIZE = 8192
 
 
-def _signature(args) -> tuple:
-    """What selects a compile of `_map_chunk`: the structure (static fields
-    included), shapes, dtypes and devices of its arguments."""
-    leaves, treedef = jax.tree_util.tree_flatten(args)
-    return treedef, tuple((x.shape, x.dtype, str(x.sharding)) for x in leaves)
-
-
-def _chunk_size(chunk_size) -> int | None:
-    """`chunk_size` as an int >= 1, or None (`ValueError` otherwise)."""
+def _chunk_size(chunk_size, n: int, width: int, units: bool) -> int | None:
+    """`chunk_size` as an int >= 1, or None (all at once); "auto" for a map of
+    n cells on `width` lanes: `CHUNK_SIZE` when chunks are `units` of work
+    (for a store or an executor), else as few chunks as keep the local devices
+    or CPU cores busy, of at most `MAX_CHUNK_SIZE` cells, and a power of two
+    of at least `width` (a handful of compiles serves maps of every size).
+    Few, large chunks lose little to their tails: a chunk lasts as long as its
+    longest analysis, which under a suite of records is 10-15 times the mean
+    (`ValueError` for anything else)."""
+    if isinstance(chunk_size, str) and chunk_size == "auto":
+        if units:
+            return CHUNK_SIZE
+        slots = max(len(jax.local_devices()), os.cpu_count() or 1)
+        share = -(-n // slots)
+        return min(max(1 << (share - 1).bit_length(), width), MAX_CHUNK_SIZE)
     if chunk_size is None:
         return None
     if not is_count(chunk_size) or chunk_size < 1:
         raise ValueError(
-            f"`chunk_size` must be an integer >= 1 or None, got {chunk_size!r}"
+            f"`chunk_size` must be an integer >= 1, None or 'auto', got {chunk_size!r}"
         )
     return int(chunk_size)
 
@@ -859,10 +867,10 @@ def _numpy(tree):
 
 def _device_args(task, device) -> tuple:
     """The arguments of `_map_chunk` but the lane width, from a task
-    (`_ChunkRunner.task`): on `device`, but the options (uncommitted)."""
+    (`_ChunkRunner.task`), on `device`."""
     *head, opts, count, pilot = task
     opts = jax.tree_util.tree_map(
-        lambda x: jax.device_put(x) if isinstance(x, np.ndarray) else x, opts
+        lambda x: jax.device_put(x, device) if isinstance(x, np.ndarray) else x, opts
     )
     return (
         *jax.device_put(tuple(head), device),
@@ -885,7 +893,6 @@ def _compute_chunk(task, device=None) -> dict:
     leaves, treedef = jax.tree_util.tree_flatten(args)
     program = _chunk_program(treedef, leaves)
     fields, carries, executed, useful = jax.device_get(program(*leaves))
-    _COMPILED.add(_signature(args))
     count, pilot = int(task[-2]), bool(task[-1])
     if pilot:
         out = {"carries": [x[:count] for x in carries]}
@@ -906,19 +913,20 @@ _TRACING = threading.Lock()
 
 def _chunk_program(treedef, leaves):
     """`_map_chunk` for arguments of the structure `treedef` (static fields
-    included) and the shapes of `leaves` (jax Arrays), on `_lane_width` lanes,
-    as a function of the leaves that returns the responses' `_FIELDS`, the
-    carries' leaves, and the lane-steps executed and useful.
+    included) and the shapes and device of `leaves` (jax Arrays), on
+    `_lane_width` lanes, compiled: a function of the leaves that returns the
+    responses' `_FIELDS`, the carries' leaves, and the lane-steps executed and
+    useful.
 
-    Made once per process, compiled for the default device. With jaxrock's
-    cache folder (`_cache.program_folder`), the compiled program is kept
-    there, and a later process loads it instead of tracing, lowering and
+    Made once per process and device. With jaxrock's cache folder
+    (`_cache.program_folder`) and one local device, the compiled program is
+    kept there, and a later process loads it instead of tracing, lowering and
     compiling again. A structure that names code outside jaxrock and its
-    dependencies (a user's isolator class) is compiled in every process. With
-    several local devices the loop is a `jax.jit` function that compiles for
-    each device its chunks go to.
+    dependencies (a user's isolator class) is compiled in every process.
     """
-    specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
+    specs = tuple(
+        jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=x.sharding) for x in leaves
+    )
     key = (treedef, specs)
     with _PROGRAMS_LOCK:
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
@@ -942,8 +950,6 @@ def _make_program(treedef, specs):
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
     traced = jax.jit(map_chunk, compiler_options=options)
-    if len(jax.local_devices()) > 1:
-        return traced
 
     def lower():
         with _TRACING:
@@ -951,7 +957,9 @@ def _make_program(treedef, specs):
 
     static = _cache.static_key(treedef)
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = None if static is None else json.dumps([static, shapes, width, options])
+    key = json.dumps([static, shapes, width, options])
+    if static is None or len(jax.local_devices()) > 1:
+        key = None  # not kept
     return _cache.compiled("map_chunk", key, lower)
 
 
@@ -1025,9 +1033,8 @@ class _ChunkRunner:
         done(k, result) as each ends; the progress bar `bar` counts them.
 
         On the executor, if any (`run_tasks`); else round-robin over the local
-        devices from one thread per CPU core, and unless the loop is compiled
-        already, the first chunk runs alone (it compiles, the others then
-        reuse the compile).
+        devices from one thread per CPU core (the first chunk of a device
+        compiles its loop, the others wait for it).
         """
 
         def task(k):
@@ -1044,15 +1051,9 @@ class _ChunkRunner:
                 done(k, out)
             return out
 
-        ks, out = list(jobs), {}
-        probe = ks and _signature(_device_args(task(ks[0]), self.device(ks[0])))
-        if ks and probe not in _COMPILED:
-            out[ks[0]] = compute(ks[0])
-            if bar is not None:
-                bar.update(1)
-        rest = ks[len(out) :]
+        out = {}
         with ThreadPoolExecutor(max(len(self.devices), os.cpu_count() or 1)) as pool:
-            for k, result in zip(rest, pool.map(compute, rest)):
+            for k, result in zip(jobs, pool.map(compute, jobs)):
                 out[k] = result
                 if bar is not None:
                     bar.update(1)
@@ -1105,7 +1106,7 @@ def behavior_map(
     duration: float | None = None,
     rtol: float = RTOL,
     atol: float = ATOL,
-    chunk_size: int | None = 610,
+    chunk_size: int | str | None = "auto",
     progress: bool | None = None,
     max_segments: int = MAX_SEGMENTS,
     max_steps: int | None = None,
@@ -1123,8 +1124,10 @@ def behavior_map(
     of an `MPPulse` may carry batch axes (an ensemble of isolators or of pulses,
     e.g. `LinearIsolator(period=jnp.array([1.5, 2.0, 2.5]), ...)`): the result
     then has shape base batch + pulse batch + (n_slenderness, n_size).
-    Cells run `chunk_size` at a time (`None`: all at once) through one compiled
-    loop on 64 vmapped lanes (128 under a record); each iteration advances
+    Cells run `chunk_size` at a time (`None`: all at once; "auto", the
+    default: 610 with a store or an executor, else as few chunks as keep the
+    CPU cores busy, each a power of two of at most 8,192 cells) through one
+    compiled loop on 64 vmapped lanes (128 under a record); each iteration advances
     every lane by one solver step, and a lane that finishes takes the chunk's
     next cell (the "flat loop", `_flat.py`). The pure-translation phase before
     uplift runs once per base, motion and slenderness (see `_map_chunk`), and
@@ -1152,14 +1155,16 @@ def behavior_map(
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
-    chunk_size = _chunk_size(chunk_size)
     opts = SolverOptions.for_motion(
         motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, _lane_width(motion))
+    width = _lane_width(motion)
+    units = store is not None or executor is not None
+    chunk_size = _chunk_size(chunk_size, grid.n, width, units)
+    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, width)
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)

@@ -294,9 +294,9 @@ def _add_map(sub) -> None:
     m.add_argument(
         "--chunk-size",
         type=_positive_int,
-        default=610,
-        help="blocks per compiled batch: smaller needs less memory, and with "
-        "--store loses less work to an interruption",
+        help="blocks per compiled batch (default: 610 with --store or "
+        "--scheduler, else as few batches as keep the CPU cores busy): smaller "
+        "needs less memory, and with --store loses less work to an interruption",
     )
     m.add_argument(
         "--store",
@@ -780,7 +780,7 @@ def _run_map(a) -> int:
             a.size,
             b,
             motion,
-            chunk_size=a.chunk_size,
+            chunk_size="auto" if a.chunk_size is None else a.chunk_size,
             store=None if a.store is None else os.path.join(a.store, type(b).__name__),
             executor=executor,
         )

@@ -206,7 +206,8 @@ def test_help_shows_defaults_and_explains_options(capsys):
         main(["map", "-h"])
     text = " ".join(capsys.readouterr().out.split())
     assert "--chunk-size CHUNK_SIZE blocks per compiled batch" in text
-    assert "(default: 610)" in text and "(default: 2.0)" in text
+    assert "(default: 610 with --store or --scheduler" in text
+    assert "(default: 2.0)" in text
     assert "(default: 1.0:7.0:61)" in text and "(default: behavior_map.png)" in text
     assert "see `jaxrock pulses`" in text
     assert "(default: None)" not in text and "(default: False)" not in text
