@@ -1,7 +1,7 @@
 """Analyses per second against the number of lanes (1e2 .. 1e5), fixed base.
 
-Random (slenderness, size) cells under the San Fernando PCD/SN pulse, chunks of
-16 lanes; best of --repeats after compilation. Prints a table and writes
+Random (slenderness, size) cells under the San Fernando PCD/SN pulse, in the
+default chunks; best of --repeats after compilation. Prints a table and writes
 benchmarks/results/scaling.{json,md}. Memory stays bounded: only the results
 (eight numbers a lane) grow with the lanes; the peak resident memory is reported.
 """
@@ -25,7 +25,7 @@ def main():
     rng = np.random.default_rng(0)
     rows = []
     n = 100
-    # Warm up (compile) with a full chunk of 16 lanes.
+    # Warm up (compile) with a map of one chunk.
     jr.behavior_map(
         np.linspace(2, 6, 4),
         np.linspace(0.5, 2, 4),

@@ -725,21 +725,12 @@ CHUNK_SIZE = 610
 MAX_CHUNK_SIZE = 8192
 
 
-def _chunk_size(chunk_size, n: int, width: int, units: bool) -> int | None:
-    """`chunk_size` as an int >= 1, or None (all at once); "auto" for a map of
-    n cells on `width` lanes: `CHUNK_SIZE` when chunks are `units` of work
-    (for a store or an executor), else as few chunks as keep the local devices
-    or CPU cores busy, of at most `MAX_CHUNK_SIZE` cells, and a power of two
-    of at least `width` (a handful of compiles serves maps of every size).
-    Few, large chunks lose little to their tails: a chunk lasts as long as its
-    longest analysis, which under a suite of records is 10-15 times the mean
-    (`ValueError` for anything else)."""
+def _chunk_size(chunk_size, units: bool) -> int | str | None:
+    """`chunk_size` as an int >= 1, None (all at once) or "auto"; "auto" is
+    `CHUNK_SIZE` when chunks are `units` of work (for a store or an executor),
+    else left to `_chunk_plan` (`ValueError` for anything else)."""
     if isinstance(chunk_size, str) and chunk_size == "auto":
-        if units:
-            return CHUNK_SIZE
-        slots = max(len(jax.local_devices()), os.cpu_count() or 1)
-        share = -(-n // slots)
-        return min(max(1 << (share - 1).bit_length(), width), MAX_CHUNK_SIZE)
+        return CHUNK_SIZE if units else chunk_size
     if chunk_size is None:
         return None
     if not is_count(chunk_size) or chunk_size < 1:
@@ -1060,7 +1051,7 @@ class _ChunkRunner:
         return out
 
 
-def _chunk_plan(n: int, chunk_size: int | None, width: int) -> tuple[int, int, int]:
+def _chunk_plan(n: int, chunk_size, width: int) -> tuple[int, int, int]:
     """(cells a chunk, its padded size, chunks) of a map of n cells. Chunks are
     padded to a power of two (at most `chunk_size`): maps of other sizes reuse
     a handful of compiles. Small maps all take one chunk shape, that of a full
@@ -1068,7 +1059,19 @@ def _chunk_plan(n: int, chunk_size: int | None, width: int) -> tuple[int, int, i
     seconds). A chunk of at least a lane width is padded to a whole number of
     lane widths: XLA's vectorized loops over its cells then leave no
     remainder, which they would compute with other roundings, and a cell's
-    position in its chunk changes none of its bits."""
+    position in its chunk changes none of its bits.
+
+    `chunk_size="auto"`: as few chunks as keep the local devices or CPU cores
+    busy, a multiple of their number (none idles at the end), of at most
+    `MAX_CHUNK_SIZE` cells; a map of up to a lane width is one chunk. Few,
+    large chunks lose little to their tails: a chunk lasts as long as its
+    longest analysis, which under a suite of records is 10-15 times the
+    mean."""
+    if isinstance(chunk_size, str):  # "auto"
+        slots = max(len(jax.local_devices()), os.cpu_count() or 1)
+        chunks = 1 if n <= width else slots * -(-n // (slots * MAX_CHUNK_SIZE))
+        chunk = -(-n // chunks)
+        return chunk, max(1 << (chunk - 1).bit_length(), width), chunks
     chunk = n if chunk_size is None else min(chunk_size, n)
     padded = max(1 << (chunk - 1).bit_length(), width)
     if chunk_size is not None:
@@ -1126,7 +1129,7 @@ def behavior_map(
     then has shape base batch + pulse batch + (n_slenderness, n_size).
     Cells run `chunk_size` at a time (`None`: all at once; "auto", the
     default: 610 with a store or an executor, else as few chunks as keep the
-    CPU cores busy, each a power of two of at most 8,192 cells) through one
+    CPU cores busy, of at most 8,192 cells each) through one
     compiled loop on 64 vmapped lanes (128 under a record); each iteration advances
     every lane by one solver step, and a lane that finishes takes the chunk's
     next cell (the "flat loop", `_flat.py`). The pure-translation phase before
@@ -1162,8 +1165,7 @@ def behavior_map(
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
     width = _lane_width(motion)
-    units = store is not None or executor is not None
-    chunk_size = _chunk_size(chunk_size, grid.n, width, units)
+    chunk_size = _chunk_size(chunk_size, store is not None or executor is not None)
     chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, width)
     if progress is None:
         progress = chunks > 1

@@ -82,17 +82,18 @@ def test_the_earliest_of_two_events_in_one_step_wins():
 
 
 def test_automatic_chunks(monkeypatch):
-    """By default a map takes as few chunks as keep the cores busy (powers of
-    two of at least a lane width, at most MAX_CHUNK_SIZE cells), and 610-cell
-    chunks when they are units of work for a store or an executor."""
+    """By default a map takes as few chunks as keep the cores busy (a multiple
+    of their number, of at most MAX_CHUNK_SIZE cells, padded to powers of two
+    of at least a lane width), and 610-cell chunks when they are units of
+    work for a store or an executor."""
     monkeypatch.setattr(_maps.os, "cpu_count", lambda: 2)
-    auto = [_maps._chunk_size("auto", n, 64, False) for n in (15, 2440, 100_000)]
-    assert auto == [64, 2048, _maps.MAX_CHUNK_SIZE]
-    assert _maps._chunk_plan(2440, 2048, 64) == (2048, 2048, 2)  # 2 x 1,220
-    assert _maps._chunk_plan(8232, 8192, 128) == (8192, 8192, 2)  # a suite map
-    assert _maps._chunk_size("auto", 2440, 64, True) == _maps.CHUNK_SIZE == 610
+    plan = [_maps._chunk_plan(n, "auto", 64) for n in (15, 2440, 99_856)]
+    assert plan == [(15, 64, 1), (1220, 2048, 2), (7133, _maps.MAX_CHUNK_SIZE, 14)]
+    assert _maps._chunk_plan(8232, "auto", 128) == (4116, 8192, 2)  # a suite map
+    assert _maps._chunk_size("auto", units=False) == "auto"
+    assert _maps._chunk_size("auto", units=True) == _maps.CHUNK_SIZE == 610
     with pytest.raises(ValueError, match="'auto'"):
-        _maps._chunk_size("many", 2440, 64, False)
+        _maps._chunk_size("many", units=False)
 
 
 def test_chunking_does_not_change_results(linear_map):
