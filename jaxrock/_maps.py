@@ -1177,7 +1177,7 @@ def behavior_map(
 
     t = time.perf_counter()
     results = {} if store is None else store.chunks(chunks)  # from an earlier run
-    bar = _progress_bar(progress, chunks, len(results))
+    bar = _progress_bar(progress, chunks, len(results), type(base).__name__)
     useful = executed = 0
     if len(results) < chunks:
         starts, useful, executed = _run_pilots(runner, grid, chunk)
@@ -1189,13 +1189,15 @@ def behavior_map(
     return _assemble(grid, results, seconds, useful, executed)
 
 
-def _progress_bar(progress: bool, chunks: int, done: int):
-    """A tqdm bar over the chunks (`done` of them from a store), or None."""
+def _progress_bar(progress: bool, chunks: int, done: int, base: str):
+    """A tqdm bar over the chunks (`done` of them from a store) of a map on
+    `base` (the name it shows: maps in threads each have a bar), or None."""
     if not progress:
         return None
     from tqdm.auto import tqdm
 
-    return tqdm(total=chunks, initial=done, desc="behavior map", unit="chunk")
+    desc = f"behavior map, {base}"
+    return tqdm(total=chunks, initial=done, desc=desc, unit="chunk")
 
 
 def _run_cells(runner: _ChunkRunner, grid: _Grid, starts, chunks, done, store, bar):
