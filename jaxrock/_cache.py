@@ -144,9 +144,9 @@ def _cache_hits() -> int:
 
 @functools.cache
 def _machine() -> list[str]:
-    """What compiled code depends on besides the program: the device, XLA's
-    flags and the processor (its instruction set extensions, which XLA's CPU
-    code uses)."""
+    """What compiled code depends on besides the program and the platform
+    (`code_version`): the device, XLA's flags and the processor (its
+    instruction set extensions, which XLA's CPU code uses)."""
     device = jax.local_devices()[0]
     flags = ""
     if platform.system() == "Linux":
@@ -156,7 +156,6 @@ def _machine() -> list[str]:
         except OSError:
             pass
     return [
-        device.platform,
         device.device_kind,
         device.client.platform_version,
         os.environ.get("XLA_FLAGS", ""),

@@ -1158,15 +1158,14 @@ def behavior_map(
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
+    chunk_size = _chunk_size(chunk_size, store is not None or executor is not None)
     opts = SolverOptions.for_motion(
         motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    width = _lane_width(motion)
-    chunk_size = _chunk_size(chunk_size, store is not None or executor is not None)
-    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, width)
+    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, _lane_width(motion))
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)
