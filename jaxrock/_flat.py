@@ -27,10 +27,12 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import computed_once, where_lanes
 from ._model import (
+    KinkClip,
     event_conditions,
     is_active,
     move_on,
     moves_on,
+    quiet_end,
     quiet_level,
     redo_limit,
     segment_setup,
@@ -141,6 +143,8 @@ class _Attempt(eqx.Module):
     dense: dict
     args: Args
     next_dt: jax.Array
+    next_t0: jax.Array  # the next step's start, and its end as the controller
+    proposed: jax.Array  # proposes it (before it ends at a kink)
     failed: jax.Array
     moves_on: jax.Array  # no event, no segment end: `move_on` ends the step
 
@@ -159,7 +163,9 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     solver = opts.solver
     t0, y0 = c.t, c.y
     t1 = jnp.minimum(t0 + jnp.minimum(c.dt, dtmax), t_stop)
-    kink = motion.next_kink(t0, quiet_level(c, block, base))
+    # (A block at rest: where |x_g''| may reach its uplift level, carried.)
+    level = quiet_level(c, block, base)
+    kink = motion.next_kink(t0, level, c.quiet_end)
     if kink is not None:
         t1 = jnp.minimum(t1, kink)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
@@ -179,10 +185,20 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         y1, y_error, dense, _, solver_result = solver.step(
             term, t0, t1, y0, args, state, made_jump=False
         )
-    _, ctrl_state = controller.init(term, t0, t1, y0, t1 - t0, args, None, None)
-    keep, next_t0, next_t1, _, _, ctrl_result = controller.adapt_step_size(
+    # The controller's next step, before it ends at a kink (`KinkClip`).
+    pid = controller.controller if isinstance(controller, KinkClip) else controller
+    _, ctrl_state = pid.init(term, t0, t1, y0, t1 - t0, args, None, None)
+    keep, next_t0, proposed, _, _, ctrl_result = pid.adapt_step_size(
         t0, t1, y0, y1, args, y_error, solver.error_order(term), ctrl_state
     )
+    next_t1 = proposed
+    # A block at rest whose quiet stretch ended without an uplift (it rested
+    # while |x_g''| was above its level) finds its next one in `_finish`.
+    stale = jnp.asarray(False)
+    if kink is not None:
+        next_t1 = jnp.minimum(next_t1, motion.next_kink(next_t0, level, c.quiet_end))
+        if level is not None:
+            stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
     # Events: the first condition (in order) that goes from > 0 to <= 0.
     crossed, fired, before = [], [], jnp.asarray(False)
     g0 = g1 = jnp.zeros_like(t0)
@@ -198,7 +214,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     )
     next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
     t_end = jnp.where(keep, t1, t0)
-    plain = ~before & moves_on(c, t_end, failed, motion, duration, opts)
+    plain = ~before & ~stale & moves_on(c, t_end, failed, motion, duration, opts)
     return _Attempt(
         t0,
         t1,
@@ -212,6 +228,8 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         dense,
         args,
         next_dt,
+        next_t0,
+        proposed,
         failed,
         plain,
     )
@@ -362,11 +380,23 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     # (A redo needs an event: `limit` of other lanes is unused.)
     new = transition(c, sol, block, base, motion, duration, opts, limit)
-    # The next step: the controller's proposal (not the mean step of a segment).
-    # After an unlocated event: at most half the step, ending at or before the
-    # bracket's upper end (so each retry gets closer).
+    # The next step: the controller's proposal (not the mean step of a segment),
+    # ending at the kink found afresh (`quiet_end` of the step's start may no
+    # longer hold at its end). After an unlocated event: at most half the
+    # step, ending at or before the bracket's upper end (so each retry gets
+    # closer).
+    next_dt = a.next_dt
+    level = quiet_level(c, block, base)
+    if level is not None:
+        # Found afresh: from the event where the block comes to rest, else from
+        # the next step's start (as a block at rest looks ahead).
+        resting = new.phase == Phase.TRANSLATION
+        found = quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
+        next_t1 = jnp.minimum(a.proposed, motion.next_kink(a.next_t0, level, found))
+        next_dt = jnp.where(is_active(c, opts), next_t1 - a.next_t0, c.dt)
+        new = eqx.tree_at(lambda n: n.quiet_end, new, found)
     retry_dt = jnp.minimum(upper - a.t0, 0.5 * (a.t1 - a.t0))
-    return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, a.next_dt))
+    return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, next_dt))
 
 
 def _is_none(x):

@@ -5,7 +5,7 @@ from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 from ._misc import (
     AbstractChecked,
@@ -55,7 +55,7 @@ class AbstractGroundMotion(AbstractChecked):
         interval is short, inf when none is cheap (the rest rule reads it)."""
 
     def next_kink(
-        self, t: Float[Array, ""], quiet_below=None
+        self, t: Float[Array, ""], quiet_below=None, quiet_end=None
     ) -> Float[Array, ""] | None:
         """Where the step that starts at t must end (s; inf: anywhere), or None
         (no limit at all). A record's steps end at its samples, the kinks of
@@ -64,9 +64,24 @@ class AbstractGroundMotion(AbstractChecked):
         where |x_g''| reaches that level: a step may then end anywhere before
         |x_g''| could reach it (a record skips samples), and must end before
         it (a pulse: no short excursion beyond the level hides inside a step,
-        between two step ends where the uplift conditions are checked)."""
-        del t, quiet_below
+        between two step ends where the uplift conditions are checked).
+        `quiet_end`: `quiet_end(t0, quiet_below)` of an earlier t0 <= t, so
+        that a step need not search for it again (None: search)."""
+        del t, quiet_below, quiet_end
         return None
+
+    def quiet_holds(self, t: Float[Array, ""], quiet_end) -> Bool[Array, ""]:
+        """Whether `quiet_end` (of an earlier time) holds at t, where
+        `next_kink` reads it."""
+        del quiet_end
+        return jnp.ones_like(t, dtype=bool)
+
+    def quiet_end(self, t: Float[Array, ""], level) -> Float[Array, ""]:
+        """Where |x_g''| may first reach `level` (m/s^2) from t on, in the
+        form `next_kink` reads (a record: the sample's index); it holds for
+        any later t up to there. NaN: `next_kink` needs none."""
+        del level
+        return jnp.full_like(t, jnp.nan)
 
     def with_peaks(self) -> "AbstractGroundMotion":
         """The motion with what `next_kink(t, quiet_below)` reads, computed
@@ -236,7 +251,7 @@ class MPPulse(AbstractGroundMotion):
         jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
-    def next_kink(self, t, quiet_below=None):
+    def next_kink(self, t, quiet_below=None, quiet_end=None):
         # |(x_g'')''| <= |A| pi f_p / gamma (2 pi f_p)^2
         #   (1/gamma^2 + 3/gamma + 3 + 2 gamma).
         w = 2.0 * jnp.pi * self.frequency
@@ -322,7 +337,7 @@ class SinePulse(AbstractGroundMotion):
         jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
-    def next_kink(self, t, quiet_below=None):
+    def next_kink(self, t, quiet_below=None, quiet_end=None):
         curvature = jnp.abs(self.amplitude) * (2.0 * jnp.pi * self.frequency) ** 2
         return _below_level_until(self, t, quiet_below, curvature, 0.0)
 

@@ -72,6 +72,11 @@ class Carry(eqx.Module):
     theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
     # A redo (see `transition`) ends the segment's steps here (s); inf: no redo.
     t_limit: Float[Array, ""]
+    # A fixed base: where |x_g''| may first reach the block's uplift level
+    # (`quiet_end`), found from an earlier time; the flat loop of maps reads
+    # it while it holds (`motion.quiet_holds`) instead of searching at every
+    # step of a block at rest. NaN: none.
+    quiet_end: Float[Array, ""]
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -116,6 +121,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
         theta_ref=zero,
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
+        quiet_end=quiet_end(t, block, base, motion),
     )
 
 
@@ -161,12 +167,20 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
 
 def quiet_level(c: Carry, block, base):
     """|x_g''| below which nothing happens: a block at rest on a fixed base
-    uplifts only where |x_g''| reaches g tan(alpha); None where the state
-    moves (an isolated base, or rocking)."""
+    uplifts only where |x_g''| reaches g tan(alpha); 0 while it rocks; None
+    on an isolated base (its state moves)."""
     if base.n_states > 0:
         return None
     resting = c.phase == Phase.TRANSLATION
     return jnp.where(resting, block.uplift_acceleration, 0.0)
+
+
+def quiet_end(t, block, base, motion):
+    """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
+    uplift level from t on (`motion.quiet_end`; NaN on an isolated base)."""
+    if base.n_states > 0:
+        return jnp.full_like(t, jnp.nan)
+    return motion.quiet_end(t, block.uplift_acceleration)
 
 
 class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
@@ -474,6 +488,7 @@ def _advance(
         dt=jnp.where(steps > 0, (t - c.t) / jnp.maximum(steps, 1), c.dt),
         kind=_event_kind(ev, rest, end.failed, still),
         t_limit=jnp.where(end.event | (t >= c.t_limit), jnp.inf, c.t_limit),
+        quiet_end=c.quiet_end,
     )
 
 

@@ -412,16 +412,9 @@ class Record(AbstractGroundMotion):
             is_leaf=lambda x: x is None,
         )
 
-    def next_kink(self, t, quiet_below=None):
-        """The first sample time after t (the same floats as dt * k), found
-        from t alone: the cost of a step does not grow with the record.
-
-        With `quiet_below` (m/s^2) and the table of `with_peaks`: the sample
-        time before the first sample whose |x_g''| reaches `quiet_below`
-        (linear between samples, |x_g''| stays below it until then), if that
-        is later: a block at rest on a fixed base then skips to just before
-        its next uplift in one step.
-        """
+    def _next_sample(self, t):
+        """The index of the first sample after t (a float) and its time (the
+        same floats as dt * k)."""
         dt = self._dt
         k = jnp.floor(t / dt)
         times = [dt * (k + i) for i in (0.0, 1.0, 2.0)]
@@ -429,16 +422,47 @@ class Record(AbstractGroundMotion):
         kink = jnp.where(
             times[0] > t, times[0], jnp.where(times[1] > t, times[1], times[2])
         )
+        return index, kink
+
+    def quiet_end(self, t, level):
+        """The first sample after t whose |x_g''| reaches `level` (its index,
+        the record's length if none), from the table of peaks (NaN without
+        one)."""
+        if self.peaks is None:
+            return jnp.full_like(t, jnp.nan)
+        scale = 1.0 if self.factor is None else self._of_batch(self.factor)
+
+        def peak(width_log, k):  # max |f x| = f max |x| (f > 0), exactly
+            return scale * self._read(self.peaks, width_log, k)
+
+        index, _ = self._next_sample(t)
+        first = _first_at_least(peak, self.sample_count, index.astype(int), level)
+        return first.astype(index.dtype)
+
+    def quiet_holds(self, t, quiet_end):
+        """`quiet_end` holds until t reaches that sample."""
+        index, _ = self._next_sample(t)
+        return quiet_end >= index
+
+    def next_kink(self, t, quiet_below=None, quiet_end=None):
+        """The first sample time after t (the same floats as dt * k), found
+        from t alone: the cost of a step does not grow with the record.
+
+        With `quiet_below` (m/s^2) and the table of `with_peaks`: the sample
+        time before the first sample whose |x_g''| reaches `quiet_below`
+        (`quiet_end`; linear between samples, |x_g''| stays below it until
+        then), if that is later: a block at rest on a fixed base then skips
+        to just before its next uplift in one step.
+        """
+        index, kink = self._next_sample(t)
         if quiet_below is not None and self.peaks is not None:
-            scale = 1.0 if self.factor is None else self._of_batch(self.factor)
-
-            def peak(width_log, k):  # max |f x| = f max |x| (f > 0), exactly
-                return scale * self._read(self.peaks, width_log, k)
-
-            n = self.sample_count
-            first = _first_at_least(peak, n, index.astype(int), quiet_below)
+            if quiet_end is None:
+                first = self.quiet_end(t, quiet_below)
+            else:  # (a level of 0, a rocking lane: no sample is quiet)
+                known = (quiet_below > 0) & self.quiet_holds(t, quiet_end)
+                first = jnp.where(known, quiet_end, index)
             later = jnp.minimum(first - 1, self._length - 1).astype(index.dtype)
-            kink = jnp.where(later > index, dt * later, kink)
+            kink = jnp.where(later > index, self._dt * later, kink)
             index = jnp.maximum(index, later)
         return jnp.where(index <= self._length - 1, kink, jnp.inf)
 

@@ -4,6 +4,7 @@ records, fragility over records, and the command line under records."""
 import importlib.resources
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -279,3 +280,31 @@ def test_next_kink_skips_to_before_the_first_sample_that_can_uplift():
             assert float(record.next_kink(t, level)) == pytest.approx(expected)
     assert float(record.next_kink(1.234)) == pytest.approx(1.24)
     assert float(record.next_kink(1.234, 0.0)) == pytest.approx(1.24)
+
+
+def test_carried_quiet_end_gives_the_searched_kinks_while_it_holds():
+    """`next_kink` with `quiet_end` found at an earlier time equals the search
+    from t wherever `quiet_holds`; past it (a block that rested while |x_g''|
+    was above its level), it holds no more."""
+    rng = np.random.default_rng(5)
+    samples = rng.normal(size=700) * np.linspace(0.2, 2.0, 700)
+    record = jr.Record(samples, 0.01).with_peaks()
+    held = passed = 0
+    for start in rng.uniform(0.0, 6.4, 12):
+        for level in (0.5, 1.5, 2.5, 9.0):
+            found = record.quiet_end(jnp.asarray(start), level)
+            for t in start + rng.uniform(0.0, 0.5, 4):
+                t = jnp.asarray(t)
+                if bool(record.quiet_holds(t, found)):
+                    held += 1
+                    assert float(record.next_kink(t, level, found)) == float(
+                        record.next_kink(t, level)
+                    )
+                else:
+                    passed += 1
+                    assert float(found) < float(record.quiet_end(t, level))
+                # A rocking block (level 0) never skips, whatever is carried.
+                assert float(record.next_kink(t, 0.0, found)) == float(
+                    record.next_kink(t)
+                )
+    assert held > 40 and passed > 5
