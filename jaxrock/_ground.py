@@ -65,8 +65,10 @@ class AbstractGroundMotion(AbstractChecked):
         |x_g''| could reach it (a record skips samples), and must end before
         it (a pulse: no short excursion beyond the level hides inside a step,
         between two step ends where the uplift conditions are checked).
-        `quiet_end`: `quiet_end(t0, quiet_below)` of an earlier t0 <= t, so
-        that a step need not search for it again (None: search)."""
+        `quiet_end`: `quiet_end(t0, level)` of an earlier t0 <= t and the
+        resting block's level, read where `quiet_holds(t, quiet_end)` and
+        `quiet_below` > 0, so that a step need not search again (None:
+        search)."""
         del t, quiet_below, quiet_end
         return None
 
