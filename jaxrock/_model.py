@@ -73,9 +73,10 @@ class Carry(eqx.Module):
     # A redo (see `transition`) ends the segment's steps here (s); inf: no redo.
     t_limit: Float[Array, ""]
     # A fixed base: where |x_g''| may first reach the block's uplift level
-    # (`quiet_end`), found from an earlier time; the flat loop of maps reads
-    # it while it holds (`motion.quiet_holds`) instead of searching at every
-    # step of a block at rest. NaN: none.
+    # (`quiet_end`), found from an earlier time; NaN: none. Only the flat loop
+    # of maps reads it (while `motion.quiet_holds`), and keeps it current in
+    # its event batches (`_flat._finish`); `simulate` searches at every step
+    # and leaves it as `initial_carry` set it.
     quiet_end: Float[Array, ""]
 
 

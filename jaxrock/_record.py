@@ -458,8 +458,8 @@ class Record(AbstractGroundMotion):
         if quiet_below is not None and self.peaks is not None:
             if quiet_end is None:
                 first = self.quiet_end(t, quiet_below)
-            else:  # (a level of 0, a rocking lane: no sample is quiet)
-                known = (quiet_below > 0) & self.quiet_holds(t, quiet_end)
+            else:  # where it holds (a level of 0, a rocking lane: never)
+                known = (quiet_below > 0) & (quiet_end >= index)
                 first = jnp.where(known, quiet_end, index)
             later = jnp.minimum(first - 1, self._length - 1).astype(index.dtype)
             kink = jnp.where(later > index, self._dt * later, kink)
