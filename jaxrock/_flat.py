@@ -324,7 +324,9 @@ def _locate(a: _Attempt, opts, unfired=()):
     def iteration(_, state):
         s, lower, upper, step = state
         going = step * h > _CONVERGED * jnp.abs(a.t0 + s * h)
-        value, slope = jax.jvp(g, (s,), (jnp.ones_like(s),))
+        # Computed once, then read by the four outputs (XLA copies g, the
+        # iteration's cost, into each output that reads it).
+        value, slope = computed_once(jnp.stack(jax.jvp(g, (s,), (jnp.ones_like(s),))))
         new, new_lower, new_upper = newton_in_bracket(
             s, value, slope, lower, upper, True
         )
