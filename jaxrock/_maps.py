@@ -1180,7 +1180,12 @@ def behavior_map(
     useful = executed = 0
     if len(results) < chunks:
         starts, useful, executed = _run_pilots(runner, grid, chunk)
+        if store is not None:  # for `lane_efficiency` of a map read back whole
+            store.write("pilots", dict(useful=useful, executed=executed))
         results |= _run_cells(runner, grid, starts, chunks, results, store, bar)
+    else:  # every chunk from the store: the pilots' counts too, if stored
+        pilots = store.read("pilots", ("useful", "executed")) or {}
+        useful, executed = (int(pilots.get(k, 0)) for k in ("useful", "executed"))
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - t

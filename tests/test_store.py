@@ -43,6 +43,11 @@ def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
     for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
         np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
     np.testing.assert_allclose(first.max_rotation, linear_map.max_rotation, rtol=1e-9)
+    # Read back whole, the map counts its pilots' lane-steps as the first run.
+    ran = len(calls)
+    whole = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    assert len(calls) == ran  # nothing ran
+    assert whole.lane_efficiency == again.lane_efficiency == first.lane_efficiency
     with pytest.raises(ValueError, match="another map"):
         jr.behavior_map(
             LAM,
