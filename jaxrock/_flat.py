@@ -25,7 +25,7 @@ from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import computed_once, where_lanes
+from ._misc import computed_once, is_none, where_lanes
 from ._model import (
     KinkClip,
     event_conditions,
@@ -37,6 +37,7 @@ from ._model import (
     redo_limit,
     segment_setup,
     transition,
+    with_start_conditions,
 )
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
@@ -142,6 +143,7 @@ class _Attempt(eqx.Module):
     g1: jax.Array
     dense: dict
     args: Args
+    ends: tuple | None  # every condition at t1 (with `Carry.start_conditions`)
     next_dt: jax.Array
     next_t0: jax.Array  # the next step's start, and its end as the controller
     proposed: jax.Array  # proposes it (before it ends at a kink)
@@ -199,11 +201,15 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         next_t1 = jnp.minimum(next_t1, motion.next_kink(next_t0, level, c.quiet_end))
         if level is not None:
             stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
-    # Events: the first condition (in order) that goes from > 0 to <= 0.
+    # Events: the first condition (in order) that goes from > 0 to <= 0. At
+    # t0 they are carried, where the carry has them (the end of the last step).
     crossed, fired, before = [], [], jnp.asarray(False)
     g0 = g1 = jnp.zeros_like(t0)
-    for cond in jax.tree_util.tree_leaves(conditions):
-        v0, v1 = cond(t0, y0, args0), cond(t1, y1, args1)
+    starts, ends = c.start_conditions, []
+    for i, cond in enumerate(jax.tree_util.tree_leaves(conditions)):
+        v0 = cond(t0, y0, args0) if starts is None else starts[i]
+        v1 = cond(t1, y1, args1)
+        ends.append(v1)
         crossed.append(keep & (v0 > 0) & (v1 <= 0))
         hit = crossed[-1] & ~before
         fired.append(hit)
@@ -227,6 +233,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         g1,
         dense,
         args,
+        None if starts is None else tuple(ends),
         next_dt,
         next_t0,
         proposed,
@@ -382,6 +389,7 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     # (A redo needs an event: `limit` of other lanes is unused.)
     new = transition(c, sol, block, base, motion, duration, opts, limit)
+    new = with_start_conditions(new, block, base, motion)
     # The next step: the controller's proposal (not the mean step of a segment),
     # ending at the kink found afresh (`quiet_end` of the step's start may no
     # longer hold at its end). After an unlocated event: at most half the
@@ -399,10 +407,6 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
         new = eqx.tree_at(lambda n: n.quiet_end, new, found)
     retry_dt = jnp.minimum(upper - a.t0, 0.5 * (a.t1 - a.t0))
     return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, next_dt))
-
-
-def _is_none(x):
-    return x is None
 
 
 # Lanes whose events are located together (a batch of the root find).
@@ -475,7 +479,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
 
     def locate(sub, motion, axes, unfired=()):
         def one(a, motion):
-            a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=_is_none)
+            a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=is_none)
             return _locate(a, opts, unfired)
 
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
@@ -504,7 +508,7 @@ def _take_lanes(tree, axes, index):
     if axes == 0:
         return jax.tree_util.tree_map(lambda x: x[index], tree)
     return jax.tree_util.tree_map(
-        lambda ax, x: x if ax is None else x[index], axes, tree, is_leaf=_is_none
+        lambda ax, x: x if ax is None else x[index], axes, tree, is_leaf=is_none
     )
 
 
@@ -530,11 +534,21 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion
     )
     moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
+    plain = a.moves_on
+    if a.ends is not None:
+        # The conditions at the step's end start the next step, unless the
+        # base's `at_transition` changed its state (a batch then evaluates
+        # them afresh).
+        plain = plain & jnp.all(moved.y[2] == y_end[2], axis=-1)
+        starts = tuple(
+            jnp.where(a.keep, v1, v0) for v1, v0 in zip(a.ends, c.start_conditions)
+        )
+        moved = eqx.tree_at(lambda m: m.start_conditions, moved, starts)
     active = is_active(c, opts)
-    new = where_lanes(a.moves_on, moved, c)
-    ends = active & ~a.moves_on
+    new = where_lanes(plain, moved, c)
+    ends = active & ~plain
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
-    lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=_is_none)
+    lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
     batch = min(_BATCH, lanes)
     batches = -(-lanes // batch)

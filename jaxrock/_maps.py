@@ -30,7 +30,14 @@ from ._misc import (
     positive,
     where_lanes,
 )
-from ._model import Carry, check_base_and_motion, initial_carry, is_active, response
+from ._model import (
+    Carry,
+    check_base_and_motion,
+    initial_carry,
+    is_active,
+    response,
+    with_start_conditions,
+)
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
@@ -232,6 +239,10 @@ class _Chunk(eqx.Module):
         index = jnp.minimum(cell, self.n - 1)
         later = jax.tree_util.tree_map(lambda x: x[index], self.shared)
         c = where_lanes(c.rocked | self.pilot, c, later)
+        # Of the cell's own block (its pilot's has another size).
+        c = jax.vmap(with_start_conditions, in_axes=(0,) + self.axes)(
+            c, *self.inputs(per_lane)
+        )
         return eqx.tree_at(lambda c: c.done, c, c.done | (cell >= self.n))
 
     def closed_form(self, c, block, lane_motion):

@@ -225,6 +225,11 @@ def computed_once(tree):
     return jax.tree_util.tree_map(once, tree)
 
 
+def is_none(x) -> bool:
+    """None: a leaf to `eqx.tree_at` or `tree_map` (`is_leaf`), not an empty node."""
+    return x is None
+
+
 def where_lanes(mask, new, old):
     """Per lane (leading axis): `new` where `mask`, else `old` (pytrees)."""
     return jax.tree_util.tree_map(

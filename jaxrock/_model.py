@@ -40,7 +40,7 @@ from ._events import (
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import first_true
+from ._misc import first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
 
 
@@ -78,6 +78,12 @@ class Carry(eqx.Module):
     # its event batches (`_flat._finish`); `simulate` searches at every step
     # and leaves it as `initial_carry` set it.
     quiet_end: Float[Array, ""]
+    # On a base with a hysteretic state (costly conditions: a friction
+    # pendulum's z), the event conditions' values at (t, y) (`start_conditions`),
+    # else None. Only the flat loop of maps reads them, as the next step's
+    # values at its start, and keeps them current; `simulate` leaves them as
+    # `initial_carry` set them.
+    start_conditions: tuple | None = None
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -102,7 +108,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
     uplift, sign = _uplift_now(t, y, phase, block, base, motion)
     valid = valid & block.valid() & base.valid() & motion.valid()
     uplift = uplift & valid
-    return Carry(
+    c = Carry(
         t=t,
         y=y,
         phase=jnp.where(uplift, Phase.RISING, phase),
@@ -124,6 +130,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
         quiet_end=quiet_end(t, block, base, motion),
     )
+    return with_start_conditions(c, block, base, motion)
 
 
 def is_active(c: Carry, opts):
@@ -144,16 +151,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     is active, the vector field's arguments, the event conditions, the end of
     the segment, the largest step (None: no limit) and the step-size controller."""
     active = is_active(c, opts)
-    args = Args(
-        block,
-        base,
-        motion,
-        c.phase,
-        c.sign,
-        c.max_u,
-        c.t >= motion.end_time,
-        c.theta_ref,
-    )
+    args = segment_args(c, block, base, motion)
     conditions = event_conditions(base)
     shaking, t_stop = segment_end(c, motion, duration)
     t_stop = jnp.minimum(t_stop, c.t_limit)
@@ -164,6 +162,24 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     if motion.next_kink(c.t, quiet_below) is not None:
         controller = KinkClip(controller, motion, quiet_below)
     return active, args, conditions, t_stop, dtmax, controller
+
+
+def segment_args(c: Carry, block, base, motion) -> Args:
+    """What the vector field and the conditions of the carry's segment read."""
+    args = (c.phase, c.sign, c.max_u, c.t >= motion.end_time, c.theta_ref)
+    return Args(block, base, motion, *args)
+
+
+def with_start_conditions(c: Carry, block, base, motion) -> Carry:
+    """The carry with its `start_conditions`: each event condition (in the
+    order of `event_conditions`) at (c.t, c.y), on a base with a hysteretic
+    state; unchanged (None) on others."""
+    if not base.hysteretic_state:
+        return c
+    args = segment_args(c, block, base, motion)
+    conditions = jax.tree_util.tree_leaves(event_conditions(base))
+    values = tuple(cond(c.t, c.y, args) for cond in conditions)
+    return eqx.tree_at(lambda c: c.start_conditions, c, values, is_leaf=is_none)
 
 
 def quiet_level(c: Carry, block, base):
@@ -490,6 +506,7 @@ def _advance(
         kind=_event_kind(ev, rest, end.failed, still),
         t_limit=jnp.where(end.event | (t >= c.t_limit), jnp.inf, c.t_limit),
         quiet_end=c.quiet_end,
+        start_conditions=c.start_conditions,
     )
 
 

@@ -1,4 +1,5 @@
-"""The flat loop's unrolled Runge-Kutta step against Diffrax's own step."""
+"""The flat loop: its unrolled Runge-Kutta step against Diffrax's own step, and
+the event conditions it carries from step to step."""
 
 import diffrax
 import jax
@@ -91,3 +92,37 @@ def test_tsit5_dense_output_in_monomials_equals_diffrax():
             )
     # Not a copy of the other: the interpolant moves within the step.
     assert abs(float(ours(jnp.asarray(0.5))[1]) - float(y0[1])) > 1e-4
+
+
+def test_carried_start_conditions_are_the_conditions_at_the_carry():
+    """On a friction pendulum the flat loop carries the event conditions at
+    each lane's (t, y) from the end of its last step (or from its event
+    batch): at every step they are the conditions evaluated afresh, to the
+    last bits, through steps that only move on and through events."""
+    from jaxrock._flat import flat_step
+    from jaxrock._model import initial_carry, is_active, with_start_conditions
+    from jaxrock._results import SolverOptions
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 4.0, 0.01)
+    record = jr.Record(6.0 * np.sin(15.0 * t) + rng.normal(size=t.size), 0.01)
+    base = jr.FrictionPendulum(0.1, 2.0, 0.5)
+    blocks = jr.Block(jnp.linspace(3.0, 8.0, 8), jnp.linspace(0.5, 2.5, 8))
+    opts = SolverOptions.for_motion(record, 1e-8, 1e-10, None, 400, 1e-6, None)
+    axes = (0, None, None)
+
+    def step(c, _):
+        new, _ = flat_step(c, blocks, base, record, 6.0, opts, axes)
+        fresh = jax.vmap(with_start_conditions, in_axes=(0,) + axes)(
+            new, blocks, base, record
+        )
+        apart = [
+            jnp.abs(carried - now) > 1e-13 * jnp.abs(now) + 1e-15
+            for carried, now in zip(new.start_conditions, fresh.start_conditions)
+        ]
+        return new, jnp.sum(is_active(new, opts) & sum(apart))
+
+    c = jax.vmap(initial_carry, in_axes=axes)(blocks, base, record)
+    c, apart = jax.jit(lambda c: jax.lax.scan(step, c, None, length=3000))(c)
+    assert int(jnp.sum(apart)) == 0
+    assert int(jnp.sum(c.impacts)) > 30 and int(jnp.sum(c.segments)) > 200
