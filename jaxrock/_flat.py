@@ -220,7 +220,9 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     )
     next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
     t_end = jnp.where(keep, t1, t0)
-    plain = ~before & ~stale & moves_on(c, t_end, failed, motion, duration, opts)
+    base_end = None if y0[2] is None else jnp.where(keep, y1[2], y0[2])
+    moving = moves_on(c, t_end, base_end, failed, base, motion, duration, opts)
+    plain = ~before & ~stale & moving
     return _Attempt(
         t0,
         t1,
@@ -534,19 +536,14 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion
     )
     moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
-    plain = a.moves_on
-    if a.ends is not None:
-        # The conditions at the step's end start the next step, unless the
-        # base's `at_transition` changed its state (a batch then evaluates
-        # them afresh).
-        plain = plain & jnp.all(moved.y[2] == y_end[2], axis=-1)
+    if a.ends is not None:  # the conditions at the step's end start the next
         starts = tuple(
             jnp.where(a.keep, v1, v0) for v1, v0 in zip(a.ends, c.start_conditions)
         )
         moved = eqx.tree_at(lambda m: m.start_conditions, moved, starts)
     active = is_active(c, opts)
-    new = where_lanes(plain, moved, c)
-    ends = active & ~plain
+    new = where_lanes(a.moves_on, moved, c)
+    ends = active & ~a.moves_on
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]

@@ -78,6 +78,12 @@ class AbstractIsolator(AbstractChecked):
         del turned
         return state
 
+    def turns_back(self, state):
+        """Whether `at_transition(state, turned=False)` changes the state (u'
+        turned back within a step, unlocated). The default: never."""
+        del state
+        return jnp.asarray(False)
+
     def peak_condition(self):
         """The event condition that locates peaks of |u| (None: `condition_base`,
         a new maximum of |u|)."""
@@ -381,13 +387,17 @@ class FrictionPendulum(AbstractFrictionPendulum):
         rounding, of either sign) or where an impact reverses u'."""
         u, u_dot, u_r = state[0], state[1], state[2]
         direction = jnp.sign(u - u_r)  # of the stretch so far
-        back = turned | (direction * u_dot < 0)
+        back = (turned & (u != u_r)) | self.turns_back(state)
         new_direction = jnp.where(turned, -direction, jnp.sign(u_dot))
         z = self.hysteretic(state)
         # |z| shrinks first (to 0 after a travel w0) if z points against it.
         shrink = jnp.maximum(-new_direction * z, 0.0)
         w0 = _solution_sine_inverse(self.beta - self.gamma, self.A, shrink / self.A)
-        return jnp.where(back & (u != u_r), jnp.stack([u, u_dot, u, z, w0]), state)
+        return jnp.where(back, jnp.stack([u, u_dot, u, z, w0]), state)
+
+    def turns_back(self, state):
+        u, u_dot, u_r = state[0], state[1], state[2]
+        return (jnp.sign(u - u_r) * u_dot < 0) & (u != u_r)
 
     def peak_condition(self):
         # Every reversal of u' starts a new stretch, and includes the peaks.

@@ -560,25 +560,24 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     return _merge_redo(c, new, active, redo, limit)
 
 
-def moves_on(c: Carry, t, failed, motion, duration, opts):
-    """Whether a flat-loop step of one solver step that ends at t with no event
-    only moves the state on: its lane is active, the solver did not fail
-    (`failed`), and the step ends before the segment's end and within
-    `max_steps`. `transition` then reduces to `move_on`."""
+def moves_on(c: Carry, t, base_state, failed, base, motion, duration, opts):
+    """Whether a flat-loop step of one solver step that ends at t in
+    `base_state` with no event only moves the state on: its lane is active,
+    the solver did not fail (`failed`), the step ends before the segment's
+    end and within `max_steps`, and the base's `at_transition` keeps its
+    state (it does not `turns_back`). `transition` then reduces to `move_on`."""
     active = is_active(c, opts)
     cut = t < segment_end(c, motion, duration)[1]
-    return active & ~failed & cut & (c.segment_steps < opts.max_steps)
+    kept = True if base_state is None else ~base.turns_back(base_state)
+    return active & ~failed & cut & (c.segment_steps < opts.max_steps) & kept
 
 
 def move_on(c: Carry, t, y, block, base, motion) -> Carry:
-    """`transition` after a step that `moves_on`: the new time and state (the
-    base's `at_transition` without a reversal), max |theta|, the step counts,
-    and whether nothing can happen any more (`quiet`). The next step `dt` is
-    the caller's."""
-    theta, theta_dot, base_state = y
-    if base_state is not None:
-        base_state = base.at_transition(base_state, jnp.asarray(False))
-    y = (theta, theta_dot, base_state)
+    """`transition` after a step that `moves_on`: the new time and state (which
+    the base's `at_transition` keeps), max |theta|, the step counts, and
+    whether nothing can happen any more (`quiet`). The next step `dt` is the
+    caller's."""
+    theta = y[0]
     args = Args(
         block, base, motion, c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref
     )
