@@ -27,6 +27,7 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import computed_once, is_none, where_lanes
 from ._model import (
+    Conditions,
     KinkClip,
     event_conditions,
     is_active,
@@ -532,14 +533,17 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     # The lanes that move on, and those that do not (inactive lanes keep
     # their carry).
     y_end = where_lanes(a.keep, a.y1, a.y0)
-    moved = jax.vmap(move_on, in_axes=(0, 0, 0) + in_axes)(
-        c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion
-    )
-    moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
+    starts = quiet_now = None
     if a.ends is not None:  # the conditions at the step's end start the next
         starts = tuple(
             jnp.where(a.keep, v1, v0) for v1, v0 in zip(a.ends, c.start_conditions)
         )
+        quiet_now = starts[Conditions._fields.index("quiet")]
+    moved = jax.vmap(move_on, in_axes=(0, 0, 0) + in_axes + (0,))(
+        c, jnp.where(a.keep, a.t1, a.t0), y_end, block, base, motion, quiet_now
+    )
+    moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
+    if starts is not None:
         moved = eqx.tree_at(lambda m: m.start_conditions, moved, starts)
     active = is_active(c, opts)
     new = where_lanes(a.moves_on, moved, c)

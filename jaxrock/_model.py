@@ -572,16 +572,25 @@ def moves_on(c: Carry, t, base_state, failed, base, motion, duration, opts):
     return active & ~failed & cut & (c.segment_steps < opts.max_steps) & kept
 
 
-def move_on(c: Carry, t, y, block, base, motion) -> Carry:
+def move_on(c: Carry, t, y, block, base, motion, quiet_now=None) -> Carry:
     """`transition` after a step that `moves_on`: the new time and state (which
     the base's `at_transition` keeps), max |theta|, the step counts, and
-    whether nothing can happen any more (`quiet`). The next step `dt` is the
-    caller's."""
+    whether nothing can happen any more (`quiet` <= 0; `quiet_now` if known).
+    The next step `dt` is the caller's."""
     theta = y[0]
-    args = Args(
-        block, base, motion, c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref
-    )
-    still = quiet(y, args) <= 0
+    if quiet_now is None:
+        args = Args(
+            block,
+            base,
+            motion,
+            c.phase,
+            c.sign,
+            c.max_u,
+            t >= motion.end_time,
+            c.theta_ref,
+        )
+        quiet_now = quiet(y, args)
+    still = quiet_now <= 0
     kind = jnp.where(still, EventKind.QUIET, EventKind.END).astype(c.kind.dtype)
     return eqx.tree_at(
         lambda c: (
