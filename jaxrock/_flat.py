@@ -414,17 +414,12 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
 
 # Lanes whose events are located together (a batch of the root find): an
 # eighth of the lanes, at least `_BATCH`: 8 on the 64 lanes of a pulse's
-# loop, 16 on the 128 of a record's (0.87-0.90x the time of 8 on the fixed
-# base's record map, 0.98x on the linear isolator's; 32 lanes 1.0x). On a
-# base with a hysteretic state `_BATCH`: there the last bits of a batch's z
-# depend on the batch's width (16 lanes moved 5 of the friction pendulum's
-# record map's cells by more than 1e-6), and 16 lanes gained 0.98x.
+# loop, 16 on the 128 of a record's (0.87-0.92x the time of 8 on the fixed
+# base's record map, 0.98x on the isolators'; 32 lanes 1.0x).
 _BATCH = 8
 
 
-def _batch_size(lanes: int, base: AbstractIsolator) -> int:
-    if base.hysteretic_state:
-        return min(_BATCH, lanes)
+def _batch_size(lanes: int) -> int:
     return min(max(_BATCH, lanes // 8), lanes)
 
 
@@ -563,7 +558,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
-    batch = _batch_size(lanes, base)
+    batch = _batch_size(lanes)
     batches = -(-lanes // batch)
     # The lanes that end, in order, then `lanes` (none) up to whole batches.
     count = jnp.sum(ends)

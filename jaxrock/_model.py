@@ -164,9 +164,11 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     return active, args, conditions, t_stop, dtmax, controller
 
 
-def segment_args(c: Carry, block, base, motion) -> Args:
-    """What the vector field and the conditions of the carry's segment read."""
-    args = (c.phase, c.sign, c.max_u, c.t >= motion.end_time, c.theta_ref)
+def segment_args(c: Carry, block, base, motion, t=None) -> Args:
+    """What the vector field and the conditions of the carry's segment read
+    (at t, by default the carry's)."""
+    t = c.t if t is None else t
+    args = (c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref)
     return Args(block, base, motion, *args)
 
 
@@ -579,17 +581,7 @@ def move_on(c: Carry, t, y, block, base, motion, quiet_now=None) -> Carry:
     The next step `dt` is the caller's."""
     theta = y[0]
     if quiet_now is None:
-        args = Args(
-            block,
-            base,
-            motion,
-            c.phase,
-            c.sign,
-            c.max_u,
-            t >= motion.end_time,
-            c.theta_ref,
-        )
-        quiet_now = quiet(y, args)
+        quiet_now = quiet(y, segment_args(c, block, base, motion, t))
     still = quiet_now <= 0
     kind = jnp.where(still, EventKind.QUIET, EventKind.END).astype(c.kind.dtype)
     return eqx.tree_at(
