@@ -559,18 +559,15 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
     batch = _batch_size(lanes)
-    batches = -(-lanes // batch)
-    # The lanes that end, in order, then `lanes` (none) up to whole batches.
+    # The lanes that end, in order: the k-th is the first lane whose count of
+    # ending lanes up to it is k + 1 (`lanes`, none, past the last).
     count = jnp.sum(ends)
-    slot = jnp.where(ends, jnp.cumsum(ends) - 1, batches * batch)
-    order = (
-        jnp.full(batches * batch, lanes).at[slot].set(jnp.arange(lanes), mode="drop")
-    )
+    ranks = jnp.cumsum(ends)
 
     def end_batch(state):
-        j, new = state
-        take = jax.lax.dynamic_slice(order, (j * batch,), (batch,))
-        take = jnp.where(j * batch + jnp.arange(batch) < count, take, lanes)
+        j, done = state
+        wanted = j * batch + jnp.arange(batch)
+        take = jnp.sum(ranks[None, :] <= wanted[:, None], axis=1)
         index = jnp.minimum(take, lanes - 1)
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
         sub_motion = _take_lanes(motion, motion_axes, index)
@@ -585,12 +582,25 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
             duration,
             opts,
         )
-        new = jax.tree_util.tree_map(
-            lambda old, x: old.at[take].set(x, mode="drop"), new, ended
+        done = jax.tree_util.tree_map(
+            lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended
         )
-        return j + 1, new
+        return j + 1, done
 
-    _, new = jax.lax.while_loop(
-        lambda state: state[0] * batch < count, end_batch, (0, new)
+    # The batches' carries, in order of the lanes that end, go back to their
+    # lanes by a gather after the loop: a scatter would keep the step loop
+    # from compiling as one kernel (`_xla.py`), and a gather inside the loop
+    # would fuse the batch's computation into each of the lanes' reads.
+    batches = -(-lanes // batch)
+    done = jax.tree_util.tree_map(
+        lambda x: jnp.zeros((batches, batch) + x.shape[1:], x.dtype), new
     )
+    _, done = jax.lax.while_loop(
+        lambda state: state[0] * batch < count, end_batch, (0, done)
+    )
+    back = jnp.maximum(ranks - 1, 0)
+    done = jax.tree_util.tree_map(
+        lambda d: d.reshape((batches * batch,) + d.shape[2:])[back], done
+    )
+    new = where_lanes(ends, done, new)
     return new, a

@@ -49,6 +49,9 @@ from ._results import (
 )
 from ._store import ChunkStore
 
+# The name scope of the loop that steps a chunk's lanes (`_Chunk.steps`): on
+# the CPU, XLA compiles it as one kernel (see `_xla.py`).
+STEP_LOOP = "lane_steps"
 _FIELDS = (
     "outcome",
     "max_rotation",
@@ -281,9 +284,10 @@ class _Chunk(eqx.Module):
             )
 
         state = eqx.tree_at(lambda s: s.finished, state, jnp.zeros_like(state.finished))
-        return jax.lax.while_loop(
-            lambda s: ~jnp.any(s.finished) & jnp.any(s.cell < self.n), body, state
-        )
+        with jax.named_scope(STEP_LOOP):  # a name to find it by in XLA's programs
+            return jax.lax.while_loop(
+                lambda s: ~jnp.any(s.finished) & jnp.any(s.cell < self.n), body, state
+            )
 
     def refill(self, state: _Lanes, count) -> _Lanes:
         """The lanes that finished write their results (idle lanes nowhere)

@@ -1,0 +1,80 @@
+"""XLA's option that compiles a while loop as one kernel (`jaxrock._xla`)."""
+
+import os
+import re
+
+import jax
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock import _maps, _xla
+
+
+def _op_names(text: str, pattern: str) -> list[str]:
+    """The op_names of the instructions of an HLO text that match `pattern`."""
+    return [
+        re.search(r'op_name="([^"]+)"', line).group(1)
+        for line in text.splitlines()
+        if re.search(pattern, line) and "op_name=" in line
+    ]
+
+
+def test_the_option_is_in_effect_in_this_process():
+    assert f"{_xla.OPTION}=" in os.environ["XLA_FLAGS"]
+
+
+def test_the_step_loop_of_a_record_map_is_one_kernel():
+    """A map's chunk loop under a record (128 lanes, event batches of 16):
+    its step loop is one kernel (XLA wraps the loop in a call that it emits
+    whole), not a while loop run kernel by kernel. A scatter inside the step
+    loop (writing a batch's lanes back) would keep it a while loop."""
+    t = np.arange(0.0, 4.0, 0.01)
+    record = jr.Record(3.0 * np.sin(2 * np.pi * t) * np.exp(-t), 0.01)
+    before = set(_maps._PROGRAMS)
+    jr.behavior_map([3.0, 5.0], [0.5, 1.5], jr.FixedBase(), record, progress=False)
+    programs = [_maps._PROGRAMS[key] for key in set(_maps._PROGRAMS) - before]
+    assert programs  # compiled (or loaded) here
+    for program in programs:
+        calls = _op_names(program.as_text(), r' call\(.*xla_cpu_small_call="true"')
+        assert any(name.endswith(f"/{_maps.STEP_LOOP}/while") for name in calls)
+
+
+@pytest.fixture
+def fresh(monkeypatch):
+    """`compile_loops_whole` as before JAX starts, in a clean environment."""
+    monkeypatch.setattr(jax._src.xla_bridge, "backends_are_initialized", lambda: False)
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    monkeypatch.delenv(_xla.ENVIRONMENT, raising=False)
+    return monkeypatch
+
+
+def test_the_option_is_added_to_the_users_flags(fresh):
+    fresh.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    assert _xla.compile_loops_whole()
+    flags = os.environ["XLA_FLAGS"].split()
+    assert flags[0] == "--xla_force_host_platform_device_count=2"
+    assert flags[1] == f"--xla_backend_extra_options={_xla.OPTION}=1000000000"
+
+
+@pytest.mark.parametrize("setting", ["off", "0", "False"])
+def test_the_option_is_left_out_when_turned_off(fresh, setting):
+    fresh.setenv(_xla.ENVIRONMENT, setting)
+    assert not _xla.compile_loops_whole()
+    assert "XLA_FLAGS" not in os.environ
+
+
+def test_the_users_backend_options_are_kept(fresh):
+    own = f"--xla_backend_extra_options={_xla.OPTION}=0"
+    fresh.setenv("XLA_FLAGS", own)
+    assert _xla.compile_loops_whole()  # the user's value of the option
+    assert os.environ["XLA_FLAGS"] == own
+    fresh.setenv("XLA_FLAGS", "--xla_backend_extra_options=xla_cpu_ftz=1")
+    assert not _xla.compile_loops_whole()
+    assert os.environ["XLA_FLAGS"] == "--xla_backend_extra_options=xla_cpu_ftz=1"
+
+
+def test_too_late_once_jax_has_computed(fresh):
+    fresh.setattr(jax._src.xla_bridge, "backends_are_initialized", lambda: True)
+    assert not _xla.compile_loops_whole()
+    assert "XLA_FLAGS" not in os.environ
