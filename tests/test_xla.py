@@ -54,7 +54,7 @@ def test_the_option_is_added_to_the_users_flags(fresh):
     assert _xla.compile_loops_whole()
     flags = os.environ["XLA_FLAGS"].split()
     assert flags[0] == "--xla_force_host_platform_device_count=2"
-    assert flags[1] == f"--xla_backend_extra_options={_xla.OPTION}=1000000000"
+    assert flags[1] == f"--xla_backend_extra_options={_xla.OPTION}={10**15}"
 
 
 @pytest.mark.parametrize("setting", ["off", "0", "False"])
