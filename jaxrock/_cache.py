@@ -19,10 +19,11 @@ from pathlib import Path
 import jax
 from jax.experimental import serialize_executable
 
+from ._misc import turned_off
+
 # The environment variable that moves the cache (a folder) or turns it off
-# ("off", "0", "none" or "false").
+# (`turned_off`).
 ENVIRONMENT = "JAXROCK_CACHE"
-_OFF = {"off", "0", "none", "false", "no"}
 # Where a kept program's code may come from: it is kept only when its
 # static structure names no class or function from elsewhere (a user's own
 # isolator or solver: its code could change unseen), and these packages'
@@ -49,7 +50,7 @@ def enable_compilation_cache() -> str | None:
     global _FOLDER
     setting = os.environ.get(ENVIRONMENT, "").strip()
     configured = jax.config.jax_compilation_cache_dir
-    if setting.lower() in _OFF or configured:
+    if turned_off(setting) or configured:
         return configured or None
     folder = Path(setting) if setting else default_folder()
     try:

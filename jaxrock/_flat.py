@@ -414,8 +414,9 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
 
 # Lanes whose events are located together (a batch of the root find): an
 # eighth of the lanes, at least `_BATCH`: 8 on the 64 lanes of a pulse's
-# loop, 16 on the 128 of a record's (0.87-0.92x the time of 8 on the fixed
-# base's record map, 0.98x on the isolators'; 32 lanes 1.0x).
+# loop, 16 on the 128 of a record's (with each loop kernel by kernel: 0.87-0.92x
+# the time of 8 on the fixed base's record map, 0.98x on the isolators'; 32
+# lanes 1.0x. As one kernel, 4, 8 and 16 were within the machine's noise).
 _BATCH = 8
 
 

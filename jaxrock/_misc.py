@@ -225,6 +225,12 @@ def computed_once(tree):
     return jax.tree_util.tree_map(once, tree)
 
 
+def turned_off(setting: str) -> bool:
+    """Whether an environment variable's value turns a feature off: "off",
+    "0", "none", "false" or "no", in any case."""
+    return setting.strip().lower() in {"off", "0", "none", "false", "no"}
+
+
 def is_none(x) -> bool:
     """None: a leaf to `eqx.tree_at` or `tree_map` (`is_leaf`), not an empty node."""
     return x is None

@@ -22,12 +22,14 @@ for the last bits of a friction pendulum's z).
 
 import os
 
-# The environment variable that keeps XLA's default ("off", "0", "none",
-# "false" or "no").
+import jax._src.xla_bridge as xla_bridge
+
+from ._misc import turned_off
+
+# The environment variable that keeps XLA's default (`turned_off`).
 ENVIRONMENT = "JAXROCK_LOOP_KERNELS"
 OPTION = "xla_cpu_small_while_loop_byte_threshold"
 _BYTES = 10**15
-_OFF = {"off", "0", "none", "false", "no"}
 
 
 def compile_loops_whole() -> bool:
@@ -36,12 +38,10 @@ def compile_loops_whole() -> bool:
     options already (the user's choice), `JAXROCK_LOOP_KERNELS=off`, or JAX's
     backends have started (too late: the flags are read). Returns whether the
     option is in effect."""
-    import jax._src.xla_bridge as xla_bridge
-
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_backend_extra_options" in flags:
         return OPTION in flags
-    if os.environ.get(ENVIRONMENT, "").strip().lower() in _OFF:
+    if turned_off(os.environ.get(ENVIRONMENT, "")):
         return False
     if xla_bridge.backends_are_initialized():
         return False
