@@ -364,16 +364,15 @@ class FrictionPendulum(AbstractFrictionPendulum):
         zeta0 = d * z_r  # z along the direction of travel
         a, loading, unloading = self.A, self.gamma + self.beta, self.beta - self.gamma
         shrinking = zeta0 < 0
-        s = _solution_sine(unloading, a, jnp.minimum(w, w0))
-        unload = (zeta0 + a * s) / (1.0 + unloading * zeta0 * s)
-        # Growing: from the stretch's start, or from 0 once past w0.
-        start = jnp.where(shrinking, 0.0, zeta0)
-        # (a c > 0 while loading: tanh only)
-        s = _solution_sine(
-            loading, a, jnp.where(shrinking, jnp.maximum(w - w0, 0.0), w), True
-        )
-        load = (start + a * s) / (1.0 + loading * start * s)
-        zeta = jnp.where(shrinking & (w < w0), unload, load)
+        # |z| shrinks (c = beta - gamma) up to w0, then grows (c = gamma + beta)
+        # from the stretch's start, or from 0 once past w0: one solution on
+        # each lane's own piece.
+        unloads = shrinking & (w < w0)
+        c = jnp.where(unloads, unloading, loading)
+        start = jnp.where(shrinking & ~unloads, 0.0, zeta0)
+        w_piece = jnp.where(shrinking & ~unloads, w - w0, w)
+        s = _solution_sine(c, a, w_piece)
+        zeta = (start + a * s) / (1.0 + c * start * s)
         # Read by many kernels (the force, the conditions): computed once.
         return computed_once(jnp.where(d == 0, z_r, d * zeta))
 
@@ -460,21 +459,18 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         return jnp.stack([u_dot, u_ddot, z_dot])
 
 
-def _solution_sine(c, a, w, positive=False):
+def _solution_sine(c, a, w):
     """S(w) with S(0) = 0 and S' = 1 - a c S^2, for w >= 0: tanh(q w) / q
     (a c = q^2 > 0), tan(q w) / q (a c = -q^2 < 0), w (c = 0). Then
     zeta(w) = (zeta0 + a S) / (1 + c zeta0 S) solves zeta' = a - c zeta^2.
     tanh by `exp` and tan by the polynomial `sincos`: XLA's float64 tanh,
-    tan and arctan are scalar library calls, slow on the CPU. `positive`:
-    a c > 0 is known (no tan to compile)."""
+    tan and arctan are scalar library calls, slow on the CPU."""
     x = a * c * w * w
     q = jnp.sqrt(jnp.abs(a * c))
     safe_q = jnp.where(q == 0, 1.0, q)
     e = jnp.exp(-2.0 * safe_q * w)
-    big = (1.0 - e) / (1.0 + e)
-    if not positive:
-        sin, cos = sincos(safe_q * w)
-        big = jnp.where(x > 0, big, sin / cos)
+    sin, cos = sincos(safe_q * w)
+    big = jnp.where(x > 0, (1.0 - e) / (1.0 + e), sin / cos)
     return jnp.where(jnp.abs(x) < 1e-12, w * (1.0 - x / 3.0), big / safe_q)
 
 
