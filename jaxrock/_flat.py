@@ -92,29 +92,40 @@ def _erk_step(tableau, t0, t1, y0, args, ground=None):
     this small system). `ground` holds x_g'' at the stage times
     (`_stage_times`; None: read from `args.motion`). Returns y1, the error
     estimate and Diffrax's dense information (y0, y1 and the stage increments
-    k_i = h f(t_i, y_i)).
+    k_i = h f(t_i, y_i)). The base states past the isolator's `n_integrated`
+    (zero rates) are carried through the stages as they are: the same
+    numbers as their sums of zero increments, without the sums.
     """
     h = t1 - t0
     times = _stage_times(tableau, t0, t1)
     if ground is None:
         ground = [args.motion.acceleration(t) for t in times]
+    n = args.base.n_integrated
+    held = n is not None and n < args.base.n_states
 
     def increment(i, y):
         f = vector_field(times[i], y, _with_ground(args, ground[i]))
-        return jax.tree_util.tree_map(lambda v: h * v, f)
+        k = jax.tree_util.tree_map(lambda v: h * v, f)
+        return (k[0], k[1], k[2][:n]) if held else k
 
     def combine(y, weights, ks):
-        return jax.tree_util.tree_map(
-            lambda y, *k: sum((w * kj for w, kj in zip(weights, k) if w != 0), y),
-            y,
-            *ks,
-        )
+        def add(y, *k):
+            return sum((w * kj for w, kj in zip(weights, k) if w != 0), y)
+
+        if not held:
+            return jax.tree_util.tree_map(add, y, *ks)
+        base = add(y[2][:n], *(k[2] for k in ks))
+        thetas = jax.tree_util.tree_map(add, y[:2], *(k[:2] for k in ks))
+        return (*thetas, jnp.concatenate([base, y[2][n:]]))
 
     ks = [increment(0, y0)]
     for i, a in enumerate(tableau.a_lower, start=1):
         ks.append(increment(i, combine(y0, a, ks)))
     y1 = combine(y0, tableau.b_sol, ks)
     y_error = combine(jax.tree_util.tree_map(jnp.zeros_like, y0), tableau.b_error, ks)
+    if held:  # the held states' increments: h 0 = 0
+        zeros = jnp.zeros_like(y0[2][n:])
+        ks = [(k[0], k[1], jnp.concatenate([k[2], zeros])) for k in ks]
     k = jax.tree_util.tree_map(lambda *k: jnp.stack(k), *ks)
     return y1, y_error, dict(y0=y0, y1=y1, k=k)
 

@@ -51,6 +51,9 @@ class AbstractIsolator(AbstractChecked):
     """
 
     n_states: ClassVar[int]
+    # The leading base states that change along a step (the others, whose
+    # `rates` are zero, change only at transitions): None, all of them.
+    n_integrated: ClassVar[int | None] = None
     free_rocking_closed_form: ClassVar[bool] = False
     # The base state holds a hysteretic variable z (`hysteretic`).
     hysteretic_state: ClassVar[bool] = False
@@ -355,6 +358,7 @@ class FrictionPendulum(AbstractFrictionPendulum):
 
     eta: ClassVar[float] = 2.0
     n_states: ClassVar[int] = 5
+    n_integrated: ClassVar[int] = 2  # u, u'; (u_r, z_r, w0) at transitions
 
     def hysteretic(self, state):
         """The Bouc-Wen variable z, from the stretch's start (u_r, z_r)."""

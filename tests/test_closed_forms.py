@@ -314,3 +314,26 @@ def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
     assert reversals >= 6
     assert np.max(np.abs(ode)) > 0.9  # z saturates, and comes back
     np.testing.assert_allclose(closed, ode, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "base",
+    [
+        jr.LinearIsolator(period=2.0, damping=0.35, mass_ratio=0.5),
+        jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5),
+        jr.IntegratedFrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5),
+    ],
+)
+def test_held_base_states_have_zero_rates(base):
+    """The flat loop's steps carry the base states past `n_integrated` as they
+    are: their rates must be zero in every state."""
+    n = base.n_states if base.n_integrated is None else base.n_integrated
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        state = jnp.asarray(
+            rng.normal(size=base.n_states) * [0.1, 1.0, 0.1, 1.0, 3.0][: base.n_states]
+        )
+        rates = np.asarray(base.rates(state, jnp.asarray(rng.normal())))
+        assert rates.shape == (base.n_states,)
+        assert np.all(rates[n:] == 0.0)
+        assert np.all(rates[:n] != 0.0)  # (u' and u'' of a random state)
