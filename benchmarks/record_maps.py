@@ -20,13 +20,17 @@ writes benchmarks/results/record_maps.{json,md}.
 import argparse
 import importlib.resources
 import json
+import os
 import resource
 import time
 from pathlib import Path
 
 import numpy as np
 
-import jaxrock as jr
+# Compile times are measured cold: no compiled loop from the cache folder.
+os.environ.setdefault("JAXROCK_CACHE", "off")
+
+import jaxrock as jr  # noqa: E402
 
 BASES = {
     "fixed": jr.FixedBase(),

@@ -423,16 +423,14 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, next_dt))
 
 
-# Lanes whose events are located together (a batch of the root find): an
-# eighth of the lanes, at least `_BATCH`: 8 on the 64 lanes of a pulse's
-# loop, 16 on the 128 of a record's (with each loop kernel by kernel: 0.87-0.92x
-# the time of 8 on the fixed base's record map, 0.98x on the isolators'; 32
-# lanes 1.0x. As one kernel, 4, 8 and 16 were within the machine's noise).
+# Lanes whose events are located together (a batch of the root find): 8, on
+# the 64 lanes of a pulse's loop and on the 128 of a record's (there batches
+# of 16 take 1.02-1.07x the time, of 32 1.15x).
 _BATCH = 8
 
 
 def _batch_size(lanes: int) -> int:
-    return min(max(_BATCH, lanes // 8), lanes)
+    return min(_BATCH, lanes)
 
 
 class _Still(AbstractGroundMotion):
