@@ -720,18 +720,12 @@ def _cells_of(module, shape, index):
     )
 
 
-# Lanes of one compiled loop (measured best on a 2-core CPU: 32-128).
+# Lanes of one compiled loop, under a pulse or a record. Measured on a 2-core
+# CPU with the loop as one kernel, under the Pacoima Dam record: 128 lanes
+# take 1.14x (linear isolator, friction pendulum) and 0.98x (fixed base) the
+# time of 64, 32 lanes 0.99x, 1.03x and 1.2x; under a pulse 128 lanes gain
+# nothing.
 LANE_WIDTH = 64
-# ... under a recorded motion, whose cells' work is even: 128 lanes run the
-# Pacoima maps in 0.83x (friction pendulum), 0.88x (fixed base) and 0.9-1.0x
-# (linear isolator) the time of 64; under a pulse 128 lanes gain nothing (a
-# friction pendulum's map takes 1.06x as long).
-RECORD_LANE_WIDTH = 128
-
-
-def _lane_width(motion: AbstractGroundMotion) -> int:
-    """Lanes of a chunk loop under `motion`."""
-    return RECORD_LANE_WIDTH if motion.sample_count > 0 else LANE_WIDTH
 
 
 # Cells a chunk holds by default when chunks are units of work for a store or
@@ -920,7 +914,7 @@ _TRACING = threading.Lock()
 def _chunk_program(treedef, leaves):
     """`_map_chunk` for arguments of the structure `treedef` (static fields
     included) and the shapes and device of `leaves` (jax Arrays), on
-    `_lane_width` lanes, compiled: a function of the leaves that returns the
+    `LANE_WIDTH` lanes, compiled: a function of the leaves that returns the
     responses' `_FIELDS`, the carries' leaves, and the lane-steps executed and
     useful.
 
@@ -947,7 +941,7 @@ def _make_program(treedef, specs):
 
     args = jax.tree_util.tree_unflatten(treedef, specs)
     options = _compiler_options(base=args[2], motion=args[3])
-    width = _lane_width(args[3])
+    width = LANE_WIDTH
 
     def map_chunk(*leaves):
         args = jax.tree_util.tree_unflatten(treedef, leaves)
@@ -1145,7 +1139,7 @@ def behavior_map(
     Cells run `chunk_size` at a time (`None`: all at once; "auto", the
     default: 610 with a store or an executor, else as few chunks as keep the
     CPU cores busy, of at most 8,192 cells each) through one
-    compiled loop on 64 vmapped lanes (128 under a record); each iteration advances
+    compiled loop on 64 vmapped lanes; each iteration advances
     every lane by one solver step, and a lane that finishes takes the chunk's
     next cell (the "flat loop", `_flat.py`). The pure-translation phase before
     uplift runs once per base, motion and slenderness (see `_map_chunk`), and
@@ -1180,7 +1174,7 @@ def behavior_map(
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, _lane_width(motion))
+    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, LANE_WIDTH)
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)

@@ -2,7 +2,7 @@
 
 On the CPU, XLA compiles a program into kernels (each fused group of
 operations) that its runtime dispatches one after the other: at a map's lane
-width (128 lanes) a step of every lane is about a hundred small kernels, and
+width (64 lanes) a step of every lane is about a hundred small kernels, and
 dispatching them costs as much as computing them. A while loop that XLA's
 cost model deems small (a pass of its body reads and writes fewer bytes than
 `xla_cpu_small_while_loop_byte_threshold`, 1 kB by default) is compiled as

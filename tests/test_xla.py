@@ -25,7 +25,7 @@ def test_the_option_is_in_effect_in_this_process():
 
 
 def test_the_step_loop_of_a_record_map_is_one_kernel():
-    """A map's chunk loop under a record (128 lanes, event batches of 16):
+    """A map's chunk loop under a record (64 lanes, event batches of 8):
     its step loop is one kernel (XLA wraps the loop in a call that it emits
     whole), not a while loop run kernel by kernel. A scatter inside the step
     loop (writing a batch's lanes back) would keep it a while loop."""
