@@ -380,11 +380,8 @@ def _locate(a: _Attempt, opts, unfired=()):
 
 
 def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
-    """The lane's new carry: the step's end, or the event and its transition.
-
-    An event whose root find did not converge rejects the step, and the next
-    attempt is shorter and ends closer to the root (a better start).
-    """
+    """The lane's new carry: the step's end, or the event and its transition;
+    its next step is `_look_ahead`'s."""
     t_event, y_event, converged, upper, limit = located
     retry = a.event & ~converged
     event = a.event & converged
@@ -403,19 +400,29 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     # (A redo needs an event: `limit` of other lanes is unused.)
     new = transition(c, sol, block, base, motion, duration, opts, limit)
-    new = with_start_conditions(new, block, base, motion)
-    # The next step: the controller's proposal (not the mean step of a segment),
-    # ending at the kink found afresh (`quiet_end` of the step's start may no
-    # longer hold at its end). After an unlocated event: at most half the
-    # step, ending at or before the bracket's upper end (so each retry gets
-    # closer).
+    return with_start_conditions(new, block, base, motion)
+
+
+def _quiet_end_afresh(a: _Attempt, new, block, base, motion):
+    """A block at rest on a fixed base: where |x_g''| may next reach its
+    uplift level, from the event where it comes to rest, else from the next
+    step's start (as a block at rest looks ahead)."""
+    resting = new.phase == Phase.TRANSLATION
+    return quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
+
+
+def _look_ahead(c, a: _Attempt, located, new, found, block, base, motion, opts):
+    """The lane's next step (`new.dt`): the controller's proposal (not the mean
+    step of a segment), on a fixed base ending at the kink that `found`
+    (`_quiet_end_afresh`) gives (`quiet_end` of the step's start may no longer
+    hold at its end). An event whose root find did not converge rejects the
+    step, and the next attempt is at most half as long, ending at or before
+    the bracket's upper end (so each retry gets closer to the root)."""
+    _, _, converged, upper, _ = located
+    retry = a.event & ~converged
     next_dt = a.next_dt
     level = quiet_level(c, block, base)
     if level is not None:
-        # Found afresh: from the event where the block comes to rest, else from
-        # the next step's start (as a block at rest looks ahead).
-        resting = new.phase == Phase.TRANSLATION
-        found = quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
         next_t1 = jnp.minimum(a.proposed, motion.next_kink(a.next_t0, level, found))
         next_dt = jnp.where(is_active(c, opts), next_t1 - a.next_t0, c.dt)
         new = eqx.tree_at(lambda n: n.quiet_end, new, found)
@@ -582,15 +589,25 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
         sub_motion = _take_lanes(motion, motion_axes, index)
         located = _locate_batch(sub, take < lanes, opts, sub_motion, motion_axes)
-        ended = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, motion_axes, None, None))(
-            sub_c,
-            sub,
-            located,
-            sub.args.block,
-            sub.args.base,
-            sub_motion,
-            duration,
-            opts,
+        block, lane_base = sub.args.block, sub.args.base
+        new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, motion_axes, None, None))(
+            sub_c, sub, located, block, lane_base, sub_motion, duration, opts
+        )
+        found = None
+        if quiet_level(sub_c, block, lane_base) is not None:
+            # Searched only where a lane rests before or after its step (a
+            # rocking lane's `quiet_end` is never read).
+            resting = Phase.TRANSLATION
+            rests = (sub_c.phase == resting) | (new.phase == resting)
+            found = jax.lax.cond(
+                jnp.any(rests & (take < lanes)),
+                lambda: jax.vmap(_quiet_end_afresh, in_axes=(0, 0, 0, 0, motion_axes))(
+                    sub, new, block, lane_base, sub_motion
+                ),
+                lambda: sub_c.quiet_end,
+            )
+        ended = jax.vmap(_look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, motion_axes, None))(
+            sub_c, sub, located, new, found, block, lane_base, sub_motion, opts
         )
         done = jax.tree_util.tree_map(
             lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended
