@@ -589,25 +589,25 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
         sub_motion = _take_lanes(motion, motion_axes, index)
         located = _locate_batch(sub, take < lanes, opts, sub_motion, motion_axes)
-        block, lane_base = sub.args.block, sub.args.base
+        sub_block, sub_base = sub.args.block, sub.args.base
         new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, motion_axes, None, None))(
-            sub_c, sub, located, block, lane_base, sub_motion, duration, opts
+            sub_c, sub, located, sub_block, sub_base, sub_motion, duration, opts
         )
         found = None
-        if quiet_level(sub_c, block, lane_base) is not None:
+        if quiet_level(sub_c, sub_block, sub_base) is not None:
             # Searched only where a lane rests before or after its step (a
             # rocking lane's `quiet_end` is never read).
-            resting = Phase.TRANSLATION
-            rests = (sub_c.phase == resting) | (new.phase == resting)
+            rest = Phase.TRANSLATION
+            rests = (sub_c.phase == rest) | (new.phase == rest)
             found = jax.lax.cond(
                 jnp.any(rests & (take < lanes)),
                 lambda: jax.vmap(_quiet_end_afresh, in_axes=(0, 0, 0, 0, motion_axes))(
-                    sub, new, block, lane_base, sub_motion
+                    sub, new, sub_block, sub_base, sub_motion
                 ),
                 lambda: sub_c.quiet_end,
             )
         ended = jax.vmap(_look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, motion_axes, None))(
-            sub_c, sub, located, new, found, block, lane_base, sub_motion, opts
+            sub_c, sub, located, new, found, sub_block, sub_base, sub_motion, opts
         )
         done = jax.tree_util.tree_map(
             lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended
