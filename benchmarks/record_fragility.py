@@ -10,6 +10,7 @@ benchmarks/results/record_fragility.{json,md} (the fits and the time).
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -18,6 +19,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+# Times include compiling: no compiled loop from the cache folder.
+os.environ.setdefault("JAXROCK_CACHE", "off")
 
 import jaxrock as jr  # noqa: E402
 from jaxrock import plot  # noqa: E402
