@@ -279,13 +279,29 @@ _TSIT5_WEIGHTS = np.array(
 )
 
 
+def _dense_weights(solver) -> np.ndarray | None:
+    """The weights W of a solver's dense output in monomials of s (stages x
+    degree: b_i(s) = sum_m W[i, m - 1] s^m), or None: another interpolant,
+    evaluated as Diffrax does. Dopri8's is Diffrax's own table (a sextic in
+    s), its columns reversed."""
+    if isinstance(solver, diffrax.Tsit5):
+        return _TSIT5_WEIGHTS
+    if isinstance(solver, diffrax.Dopri8):
+        return np.asarray(solver.interpolation_cls.eval_coeffs)[:, ::-1]
+    return None
+
+
 def _dense_in_s(solver, a: "_Attempt"):
     """The step's dense output as a function of s = (t - t0) / (t1 - t0).
 
-    Tsit5's is a quartic in s: its coefficients are computed once, and each
-    evaluation is Horner's rule (elementwise: cheap inside Newton's iterations).
+    Tsit5's is a quartic in s, Dopri8's a sextic (`_dense_weights`): their
+    coefficients are computed once, and each evaluation is Horner's rule
+    (elementwise: cheap inside Newton's iterations). With Diffrax's
+    interpolation object, Dopri8's record map on a friction pendulum takes
+    1.03x the time.
     """
-    if not isinstance(solver, diffrax.Tsit5):
+    weights = _dense_weights(solver)
+    if weights is None:
         evaluate = solver.interpolation_cls(t0=a.t0, t1=a.t1, **a.dense).evaluate
         return lambda s: evaluate(a.t0 + s * (a.t1 - a.t0))
 
@@ -293,7 +309,7 @@ def _dense_in_s(solver, a: "_Attempt"):
         return jnp.stack(
             [
                 sum(w * k[i] for i, w in enumerate(column) if w != 0)
-                for column in _TSIT5_WEIGHTS.T
+                for column in weights.T
             ]
         )
 
@@ -301,9 +317,13 @@ def _dense_in_s(solver, a: "_Attempt"):
     c = computed_once(jax.tree_util.tree_map(coefficients, a.dense["k"]))
 
     def evaluate(s):
-        return jax.tree_util.tree_map(
-            lambda y, c: y + s * (c[0] + s * (c[1] + s * (c[2] + s * c[3]))), y0, c
-        )
+        def horner(y, c):
+            p = c[-1]
+            for cm in c[-2::-1]:
+                p = cm + s * p
+            return y + s * p
+
+        return jax.tree_util.tree_map(horner, y0, c)
 
     return evaluate
 

@@ -63,23 +63,24 @@ def test_computed_once_is_exact_and_transparent_to_derivatives():
     np.testing.assert_array_equal(np.asarray(tangent), 2.5)
 
 
-def test_tsit5_dense_output_in_monomials_equals_diffrax():
-    """The root find's Tsit5 interpolant (a quartic in s, Horner's rule) is
-    Diffrax's, with its derivative, on a 10 ms step of a rocking block on a
-    linear isolator mid-pulse."""
+@pytest.mark.parametrize("solver", [diffrax.Tsit5(), diffrax.Dopri8()])
+def test_dense_output_in_monomials_equals_diffrax(solver):
+    """The root find's interpolant (a polynomial in s, Horner's rule: a quartic
+    for Tsit5, a sextic for Dopri8) is Diffrax's, with its derivative, on a
+    10 ms step of a rocking block on a linear isolator mid-pulse."""
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
     args = _rising(base)
     y0 = (jnp.asarray(0.01), jnp.asarray(0.2), jnp.array([0.01, 0.3]))
     t0, t1 = jnp.asarray(0.7), jnp.asarray(0.71)
-    _, _, dense = _erk_step(diffrax.Tsit5.tableau, t0, t1, y0, args)
+    _, _, dense = _erk_step(solver.tableau, t0, t1, y0, args)
 
     class Step:  # what `_dense_in_s` reads of an attempt
         pass
 
     step = Step()
     step.t0, step.t1, step.dense = t0, t1, dense
-    ours = _dense_in_s(diffrax.Tsit5(), step)
-    theirs = diffrax.Tsit5.interpolation_cls(t0=t0, t1=t1, **dense).evaluate
+    ours = _dense_in_s(solver, step)
+    theirs = solver.interpolation_cls(t0=t0, t1=t1, **dense).evaluate
     for s in np.linspace(0.0, 1.0, 7):
         s = jnp.asarray(s)
         a, da = jax.jvp(ours, (s,), (jnp.ones_like(s),))
