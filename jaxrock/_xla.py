@@ -16,11 +16,12 @@ loop gathers, never scatters.)
 
 The option is process-wide and read when JAX starts its CPU backend, so it is
 set at import, before any computation: importing jaxrock after JAX has
-computed leaves it unset, and maps run 1.1-2x slower (the same results, but
-for the last bits of a friction pendulum's z).
+computed leaves it unset (with a warning), and maps run 1.1-2x slower (the
+same results, but for the last bits of a friction pendulum's z).
 """
 
 import os
+import warnings
 
 import jax._src.xla_bridge as xla_bridge
 
@@ -36,14 +37,22 @@ def compile_loops_whole() -> bool:
     """Add `--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=
     1000000000000000` to `XLA_FLAGS`, unless `XLA_FLAGS` sets XLA's backend
     options already (the user's choice), `JAXROCK_LOOP_KERNELS=off`, or JAX's
-    backends have started (too late: the flags are read). Returns whether the
-    option is in effect."""
+    backends have started (too late: the flags are read; a `RuntimeWarning`
+    says so). Returns whether the option is in effect."""
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_backend_extra_options" in flags:
         return OPTION in flags
     if turned_off(os.environ.get(ENVIRONMENT, "")):
         return False
     if xla_bridge.backends_are_initialized():
+        warnings.warn(
+            "jaxrock was imported after JAX started its backends, too late to "
+            f"compile loops as one kernel ({OPTION}): behavior maps run 1.1-2x "
+            "slower. Import jaxrock before JAX computes anything, or set "
+            f"{ENVIRONMENT}=off to keep XLA's default without this warning.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
         return False
     option = f"--xla_backend_extra_options={OPTION}={_BYTES}"
     os.environ["XLA_FLAGS"] = f"{flags} {option}".strip()

@@ -2,6 +2,7 @@
 
 import os
 import re
+import warnings
 
 import jax
 import numpy as np
@@ -76,5 +77,10 @@ def test_the_users_backend_options_are_kept(fresh):
 
 def test_too_late_once_jax_has_computed(fresh):
     fresh.setattr(jax._src.xla_bridge, "backends_are_initialized", lambda: True)
-    assert not _xla.compile_loops_whole()
+    with pytest.warns(RuntimeWarning, match=f"import.* before JAX.*{_xla.ENVIRONMENT}"):
+        assert not _xla.compile_loops_whole()
     assert "XLA_FLAGS" not in os.environ
+    fresh.setenv(_xla.ENVIRONMENT, "off")  # the user's choice: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not _xla.compile_loops_whole()
