@@ -33,15 +33,18 @@ from ._simulate import run
 
 
 def _pairs(blocks: Block, motions: AbstractGroundMotion):
-    """Every (block, motion) pair as one lane: leaves of shape (n_blocks n_motions,)."""
+    """Every (block, motion) pair as one lane: leaves of shape (n_blocks
+    n_motions,), and the motions' `jax.vmap` in_axes. One record is shared by
+    every lane; a suite's lanes read its records in place (`Record.row`)."""
     shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
     nb = int(np.prod(shape))
-    leaves = jax.tree_util.tree_leaves(motions)
-    nm = (
-        1
-        if isinstance(motions, Record)
-        else max([int(jnp.size(x)) for x in leaves] + [1])
-    )
+    suite = isinstance(motions, Record) and bool(motions.batch_shape)
+    if suite:
+        nm = int(np.prod(motions.batch_shape))
+    elif isinstance(motions, Record):
+        nm = 1
+    else:
+        nm = max([int(jnp.size(x)) for x in jax.tree_util.tree_leaves(motions)] + [1])
 
     def tile_blocks(x):
         return jnp.repeat(jnp.broadcast_to(jnp.asarray(x), (nb,)), nm)
@@ -50,12 +53,17 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
         return jnp.tile(jnp.broadcast_to(jnp.asarray(x), (nm,)), nb)
 
     lane_blocks = jax.tree_util.tree_map(tile_blocks, blocks)
-    lane_motions = (
-        motions
-        if isinstance(motions, Record)
-        else jax.tree_util.tree_map(tile_motions, motions)
-    )
-    return lane_blocks, lane_motions, (nb, nm)
+    if suite:
+        suite = motions.unlabeled().with_peaks()
+        return (
+            lane_blocks,
+            suite.row(tile_motions(jnp.arange(nm))),
+            suite.row_axes(),
+            (nb, nm),
+        )
+    if isinstance(motions, Record):
+        return lane_blocks, motions, None, (nb, nm)
+    return lane_blocks, jax.tree_util.tree_map(tile_motions, motions), 0, (nb, nm)
 
 
 def responses(
@@ -78,7 +86,9 @@ def responses(
         base: the base, without batch axes.
         blocks: the blocks, with one batch axis (n_blocks) or none.
         motions: the ground motions, with one batch axis (n_motions) or none;
-            or one `Record`, shared by all blocks.
+            one `Record`, shared by all blocks; or a suite of records
+            (`Record.stack`, its motion axes flattened: n_motions records),
+            whose samples every lane reads in place.
         duration: the length of every analysis (s); default the latest end of
             the motions plus 5 s.
         opts: the numerical options (`SolverOptions`).
@@ -95,13 +105,12 @@ def responses(
         >>> r.max_rotation.shape, r.max_rotation.round(3).tolist()
         ((2, 2), [[0.0, 0.0], [0.001, 0.068]])
     """
-    lane_blocks, lane_motions, shape = _pairs(blocks, motions)
+    lane_blocks, lane_motions, motion_axes, shape = _pairs(blocks, motions)
     if duration is None:
         duration = jnp.max(motions.end_time) + 5.0
-    axes = (0, None if isinstance(motions, Record) else 0)
-    out = jax.vmap(lambda b, m: run(b, base, m, duration, opts), in_axes=axes)(
-        lane_blocks, lane_motions
-    )
+    out = jax.vmap(
+        lambda b, m: run(b, base, m, duration, opts), in_axes=(0, motion_axes)
+    )(lane_blocks, lane_motions)
     return jax.tree_util.tree_map(lambda x: x.reshape(shape), out)
 
 
@@ -136,8 +145,9 @@ def isolator_objective(
         make_base: builds the isolator from a dict of parameters (name ->
             scalar, in the parameter's units, e.g. a period in s).
         blocks: the blocks, with one batch axis or none.
-        motions: the ground motions, with one batch axis or none; or one
-            `Record`, shared by all blocks.
+        motions: the ground motions, with one batch axis or none; one
+            `Record`, shared by all blocks; or a suite of records
+            (`Record.stack`).
         capacity: the isolator's displacement capacity (m); default 0.3.
         penalty: the weight of the penalty (-); default 10.
         opts: the numerical options (`SolverOptions`).
@@ -160,7 +170,7 @@ def isolator_objective(
         {'damping': 0.323, 'period': -0.173}
     """
 
-    _check_objective(motions, capacity, penalty)
+    _check_objective(capacity, penalty)
 
     def objective(params):
         return _objective(make_base(params), blocks, motions, capacity, penalty, opts)
@@ -168,17 +178,12 @@ def isolator_objective(
     return objective
 
 
-def _check_objective(motions, capacity, penalty) -> None:
+def _check_objective(capacity, penalty) -> None:
     """The objective's arguments (`ValueError` naming them)."""
     if not _real("capacity", capacity) > 0:
         raise ValueError(f"`capacity` must be finite and > 0 (m), got {capacity}")
     if not _real("penalty", penalty) >= 0:
         raise ValueError(f"`penalty` must be finite and >= 0, got {penalty}")
-    if motions.shared_by_cells and motions.batch_shape:
-        raise ValueError(
-            "`motions` must be one record or a batch of pulses: a suite of "
-            "records is not supported by the design tools"
-        )
 
 
 def _real(name: str, value) -> float:
@@ -302,8 +307,9 @@ def tune_isolator(
         init: the starting parameters, name -> value (in the parameter's
             units, e.g. s for a period), each within its bounds.
         blocks: the blocks, with one batch axis or none.
-        motions: the ground motions, with one batch axis or none; or one
-            `Record`, shared by all blocks.
+        motions: the ground motions, with one batch axis or none; one
+            `Record`, shared by all blocks; or a suite of records
+            (`Record.stack`).
         bounds: name -> (low, high) for every name of `init`, low < high, in
             the parameter's units.
         capacity: the isolator's displacement capacity (m), > 0; default 0.3.
@@ -344,7 +350,7 @@ def tune_isolator(
         >>> {k: round(v, 3) for k, v in result.best.items()}
         {'damping': 0.145, 'period': 1.743}
     """
-    _check_objective(motions, capacity, penalty)
+    _check_objective(capacity, penalty)
     names = _check_design(init, bounds, steps, learning_rate)
     scale = _Scaling(names, bounds)
     problem = (

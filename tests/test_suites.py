@@ -308,3 +308,40 @@ def test_carried_quiet_end_gives_the_searched_kinks_while_it_holds():
                     record.next_kink(t)
                 )
     assert held > 40 and passed > 5
+
+
+def test_design_objective_over_a_suite_is_that_of_its_records():
+    """`isolator_objective` (and so `tune_isolator`) takes a suite of records:
+    its responses are those of each record alone, and its gradient the mean
+    of theirs (the same blocks under each record)."""
+    t = np.arange(300) * 0.01
+    first = jr.Record(3.0 * np.sin(2 * np.pi * t) * np.exp(-t), 0.01)
+    second = jr.Record(2.0 * np.sin(np.pi * t), 0.02)  # 6 s, at 0.02 s
+    blocks = jr.Block(jnp.array([4.0, 5.0]), jnp.array([0.5, 1.0]))
+    params = {"period": jnp.asarray(1.5), "damping": jnp.asarray(0.2)}
+
+    def linear(p):
+        return jr.LinearIsolator(p["period"], p["damping"], 0.5)
+
+    @jax.jit
+    def gradient(params, motions):  # one compile for both records
+        objective = jr.design.isolator_objective(linear, blocks, motions)
+        return jax.jacfwd(objective, has_aux=True)(params)
+
+    grad, r = gradient(params, jr.Record.stack([first, second]))
+    assert r.max_rotation.shape == (2, 2)
+    alone = [gradient(params, record) for record in (first, second)]
+    for k in range(2):
+        for field in ("outcome", "impacts"):
+            np.testing.assert_array_equal(
+                getattr(r, field)[:, k], getattr(alone[k][1], field)[:, 0]
+            )
+        for field in ("max_rotation", "max_base_displacement"):
+            np.testing.assert_allclose(
+                getattr(r, field)[:, k], getattr(alone[k][1], field)[:, 0], rtol=1e-9
+            )
+    assert (r.outcome == jr.Outcome.ROCKING).sum() >= 2  # a gradient that moves
+    for name in params:
+        mean = np.mean([g[name] for g, _ in alone])
+        np.testing.assert_allclose(grad[name], mean, rtol=1e-8)
+        assert grad[name] != 0
