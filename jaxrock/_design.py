@@ -38,8 +38,8 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
     every lane; a suite's lanes read its records in place (`Record.row`)."""
     shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
     nb = int(np.prod(shape))
-    suite = isinstance(motions, Record) and bool(motions.batch_shape)
-    if suite:
+    of_suite = isinstance(motions, Record) and bool(motions.batch_shape)
+    if of_suite:
         nm = int(np.prod(motions.batch_shape))
     elif isinstance(motions, Record):
         nm = 1
@@ -53,7 +53,7 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
         return jnp.tile(jnp.broadcast_to(jnp.asarray(x), (nm,)), nb)
 
     lane_blocks = jax.tree_util.tree_map(tile_blocks, blocks)
-    if suite:
+    if of_suite:
         suite = motions.unlabeled().with_peaks()
         return (
             lane_blocks,
