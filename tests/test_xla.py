@@ -58,6 +58,15 @@ def test_the_option_is_added_to_the_users_flags(fresh):
     assert flags[1] == f"--xla_backend_extra_options={_xla.OPTION}={10**15}"
 
 
+@pytest.mark.parametrize("setting", ["flattened", " Flattened "])
+def test_flattened_adds_xlas_flattened_fusions(fresh, setting):
+    fresh.setenv(_xla.ENVIRONMENT, setting)
+    assert _xla.compile_loops_whole()
+    assert os.environ["XLA_FLAGS"] == (
+        f"--xla_backend_extra_options={_xla.OPTION}={10**15},{_xla.FLATTEN}"
+    )
+
+
 @pytest.mark.parametrize("setting", ["off", "0", "False"])
 def test_the_option_is_left_out_when_turned_off(fresh, setting):
     fresh.setenv(_xla.ENVIRONMENT, setting)
