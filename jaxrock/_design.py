@@ -53,8 +53,8 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
         return jnp.tile(jnp.broadcast_to(jnp.asarray(x), (nm,)), nb)
 
     lane_blocks = jax.tree_util.tree_map(tile_blocks, blocks)
-    if of_suite:
-        suite = motions.unlabeled().with_peaks()
+    if of_suite:  # (its table of peaks: computed once by `run`, unbatched)
+        suite = motions.unlabeled()
         return (
             lane_blocks,
             suite.row(tile_motions(jnp.arange(nm))),

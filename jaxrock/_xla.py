@@ -23,7 +23,7 @@ same results, but for the last bits of a friction pendulum's z).
 the fused groups of a kernel are inlined into it, and the compiler optimizes
 across them. Under the Pacoima record the isolators' maps then run in 0.90x
 (linear isolator) and 0.76x (friction pendulum) the time, the fixed base's
-in 1.09x, and every map compiles 2-4x longer: for long campaigns of
+in 1.09x, and every map compiles 2-4.5x longer: for long campaigns of
 isolator maps, whose compiled loops the cache folder keeps.
 """
 
