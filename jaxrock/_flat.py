@@ -36,6 +36,7 @@ from ._model import (
     quiet_end,
     quiet_level,
     redo_limit,
+    segment_end,
     segment_setup,
     transition,
     with_start_conditions,
@@ -161,6 +162,7 @@ class _Attempt(eqx.Module):
     proposed: jax.Array  # proposes it (before it ends at a kink)
     failed: jax.Array
     moves_on: jax.Array  # no event, no segment end: `move_on` ends the step
+    searches: jax.Array  # a lane at rest looks for a jump (`_rest_jump`)
 
     @property
     def event(self):
@@ -234,7 +236,12 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     t_end = jnp.where(keep, t1, t0)
     base_end = None if y0[2] is None else jnp.where(keep, y1[2], y0[2])
     moving = moves_on(c, t_end, base_end, failed, base, motion, duration, opts)
-    plain = ~before & ~stale & moving
+    searches = jnp.asarray(False)
+    if motion.translation_tables() is not None:
+        k, exact = motion.sample_at(t0)
+        resting = active & (c.phase == Phase.TRANSLATION)
+        searches = resting & exact & (k >= c.quiet_end)
+    plain = ~before & ~stale & ~searches & moving
     return _Attempt(
         t0,
         t1,
@@ -253,6 +260,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         proposed,
         failed,
         plain,
+        searches,
     )
 
 
@@ -399,9 +407,9 @@ def _locate(a: _Attempt, opts, unfired=()):
     return t, y, converged, a.t0 + upper * h, limit
 
 
-def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
-    """The lane's new carry: the step's end, or the event and its transition;
-    its next step is `_look_ahead`'s."""
+def _finish(c, a: _Attempt, located, jump, block, base, motion, duration, opts):
+    """The lane's new carry: the step's end, or the event and its transition,
+    or `jump`'s end (None: no lane jumps); its next step is `_look_ahead`'s."""
     t_event, y_event, converged, upper, limit = located
     retry = a.event & ~converged
     event = a.event & converged
@@ -413,6 +421,9 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
         a.y0,
         y_event,
     )
+    if jump is not None:
+        t_end = jnp.where(jump.go, jump.t, t_end)
+        y_end = (*y_end[:2], jnp.where(jump.go, jump.base_state, y_end[2]))
     result = diffrax.RESULTS.where(
         event, diffrax.RESULTS.event_occurred, diffrax.RESULTS.successful
     )
@@ -420,7 +431,63 @@ def _finish(c, a: _Attempt, located, block, base, motion, duration, opts):
     sol = _StepSolution(t_end, y_end, result, a.fired, jnp.asarray(1))
     # (A redo needs an event: `limit` of other lanes is unused.)
     new = transition(c, sol, block, base, motion, duration, opts, limit)
+    if jump is not None:
+        searched = jnp.where(a.searches, jump.quiet_end, c.quiet_end)
+        new = eqx.tree_at(
+            lambda n: (n.max_u, n.quiet_end),
+            new,
+            (
+                jnp.where(jump.go, jnp.maximum(new.max_u, jump.max_u), new.max_u),
+                jnp.where(event, -1.0, searched),
+            ),
+        )
     return with_start_conditions(new, block, base, motion)
+
+
+# A lane at rest whose search found no jump searches again this many samples
+# later.
+_SEARCH_AGAIN = 16
+
+
+class _Jump(eqx.Module):
+    """A lane at rest on an isolated base that skips samples (`_rest_jump`):
+    whether it does (`go`), to where (t, its base state, max |u| there) and
+    the sample where it searches next (`Carry.quiet_end`)."""
+
+    go: jax.Array
+    t: jax.Array
+    base_state: jax.Array
+    max_u: jax.Array
+    quiet_end: jax.Array
+
+
+def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
+    """A lane at rest at sample k on a linear isolator, under a record with
+    `translation_tables`, jumps to the first sample interval m over which the
+    block could uplift or |u| reach a new maximum, if m >= k + 2.
+
+    The base state is y = y_p + h: y_p tabulated, h a free vibration (exact,
+    `free_vibration`) whose bounds (`free_vibration_bounds`) lower the
+    levels: |A| <= max |A_p| + max |A_h| stays below the uplift level, and
+    |u| <= max |u_p| + max |u_h| below max |u| so far. A lane that never
+    rocked moves on y_p itself (h = 0, its state from t = 0), and max |u|
+    over the jump is read from the table.
+    """
+    k, _ = motion.sample_at(a.t0)
+    k = k.astype(int)
+    h = jnp.where(c.rocked, a.y0[2] - motion.translation_state(k), 0.0)
+    u_bound, f_bound = base.free_vibration_bounds(h)
+    margin = 1.0 - 1e-9  # rounding
+    acceleration = block.uplift_acceleration * margin - f_bound
+    displacement = jnp.where(c.rocked, c.max_u * margin - u_bound, jnp.inf)
+    m = motion.translation_first(k, acceleration, displacement)
+    t = motion.sample_time(m)
+    _, t_stop = segment_end(c, motion, duration)
+    go = a.searches & (m >= k + 2) & ~a.event & (t <= jnp.minimum(t_stop, c.t_limit))
+    state = motion.translation_state(m) + base.free_vibration(h, t - a.t0)
+    max_u = jnp.where(c.rocked, c.max_u, motion.translation_displacement_max(m))
+    again = jnp.where(go, m + 1, k + _SEARCH_AGAIN).astype(a.t0.dtype)
+    return _Jump(go, t, state, max_u, again)
 
 
 def _quiet_end_afresh(a: _Attempt, new, block, base, motion):
@@ -431,16 +498,19 @@ def _quiet_end_afresh(a: _Attempt, new, block, base, motion):
     return quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
 
 
-def _look_ahead(c, a: _Attempt, located, new, found, block, base, motion, opts):
+def _look_ahead(c, a: _Attempt, located, jump, new, found, block, base, motion, opts):
     """The lane's next step (`new.dt`): the controller's proposal (not the mean
     step of a segment), on a fixed base ending at the kink that `found`
     (`_quiet_end_afresh`) gives (`quiet_end` of the step's start may no longer
     hold at its end). An event whose root find did not converge rejects the
     step, and the next attempt is at most half as long, ending at or before
-    the bracket's upper end (so each retry gets closer to the root)."""
+    the bracket's upper end (so each retry gets closer to the root). After a
+    `jump`, the controller's proposal, to end at the next kink."""
     _, _, converged, upper, _ = located
     retry = a.event & ~converged
     next_dt = a.next_dt
+    if jump is not None:
+        next_dt = jnp.where(jump.go, a.proposed - a.next_t0, next_dt)
     level = quiet_level(c, block, base)
     if level is not None:
         next_t1 = jnp.minimum(a.proposed, motion.next_kink(a.next_t0, level, found))
@@ -610,8 +680,22 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         sub_motion = _take_lanes(motion, motion_axes, index)
         located = _locate_batch(sub, take < lanes, opts, sub_motion, motion_axes)
         sub_block, sub_base = sub.args.block, sub.args.base
-        new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, motion_axes, None, None))(
-            sub_c, sub, located, sub_block, sub_base, sub_motion, duration, opts
+        jump = None
+        if motion.translation_tables() is not None:
+            jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None))
+            jump = jax.lax.cond(
+                jnp.any(sub.searches & (take < lanes)),
+                lambda: jumps(sub_c, sub, sub_block, sub_base, sub_motion, duration),
+                lambda: _Jump(
+                    jnp.zeros_like(sub.searches),
+                    sub.t0,
+                    sub.y0[2],
+                    sub_c.max_u,
+                    sub_c.quiet_end,
+                ),
+            )
+        new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
+            sub_c, sub, located, jump, sub_block, sub_base, sub_motion, duration, opts
         )
         found = None
         if quiet_level(sub_c, sub_block, sub_base) is not None:
@@ -626,8 +710,11 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
                 ),
                 lambda: sub_c.quiet_end,
             )
-        ended = jax.vmap(_look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, motion_axes, None))(
-            sub_c, sub, located, new, found, sub_block, sub_base, sub_motion, opts
+        look_ahead = jax.vmap(
+            _look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, 0, motion_axes, None)
+        )
+        ended = look_ahead(
+            sub_c, sub, located, jump, new, found, sub_block, sub_base, sub_motion, opts
         )
         done = jax.tree_util.tree_map(
             lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended

@@ -90,6 +90,17 @@ class AbstractGroundMotion(AbstractChecked):
         once before an analysis's loop."""
         return self
 
+    def with_translation(self, base) -> "AbstractGroundMotion":
+        """The motion with `base`'s response in translation to it
+        (`AbstractIsolator.translation_tables`), if any, computed once before
+        a map's loop (a record's: see `Record.with_translation`)."""
+        del base
+        return self
+
+    def translation_tables(self):
+        """What `with_translation` added (None: nothing)."""
+        return None
+
     @property
     def sample_count(self) -> int:
         """Samples of the motion (a record's; 0 for a closed form)."""

@@ -26,6 +26,7 @@ from ._misc import (
     greater_than_zero,
     parameter,
 )
+from ._translation import free_vibration, free_vibration_bounds, translation_tables
 from ._trig import sincos
 
 
@@ -91,6 +92,19 @@ class AbstractIsolator(AbstractChecked):
         """The event condition that locates peaks of |u| (None: `condition_base`,
         a new maximum of |u|)."""
         return None
+
+    def translation_tables(self, samples, dt, length):
+        """The base's response in translation (the block at rest on it) to a
+        record or suite (`Record.unscaled`, `dt`, `length`), tabulated for
+        resting lanes of a map to skip samples (`_translation.py`); None
+        (the default): the base's state must be integrated."""
+        del samples, dt, length
+        return None
+
+    def free_vibration(self, state, tau):
+        """The base state after tau (s) of free vibration in translation (the
+        ground still), where `translation_tables` gives tables."""
+        raise NotImplementedError
 
     @abc.abstractmethod
     def free_vibration_bounds(self, state):
@@ -198,17 +212,18 @@ class LinearIsolator(AbstractIsolator):
     def rates(self, state, u_ddot):
         return jnp.stack([state[1], u_ddot])
 
+    @property
+    def _omega(self):
+        return 2.0 * jnp.pi / self.period
+
     def free_vibration_bounds(self, state):
-        # E = u'^2 / 2 + omega^2 u^2 / 2 decays (E' = -2 xi omega u'^2), and
-        # |u| <= sqrt(2E) / omega, |F / M| <= omega sqrt(2E) sqrt(1 + 4 xi^2).
-        omega = 2.0 * jnp.pi / self.period
-        # (sqrt of at least 1e-300: a finite derivative at rest)
-        amplitude = jnp.sqrt(
-            jnp.maximum(state[1] ** 2 + (omega * state[0]) ** 2, 1e-300)
-        )
-        return amplitude / omega, omega * amplitude * jnp.sqrt(
-            1.0 + 4.0 * self.damping**2
-        )
+        return free_vibration_bounds(self._omega, self.damping, state)
+
+    def translation_tables(self, samples, dt, length):
+        return translation_tables(self._omega, self.damping, samples, dt, length)
+
+    def free_vibration(self, state, tau):
+        return free_vibration(self._omega, self.damping, state, tau)
 
     @property
     def block_mass_fraction(self):

@@ -88,6 +88,7 @@ def _map_chunk(
     motion,
     motion_index,
     shared,
+    one_base,
     duration,
     opts,
     count,
@@ -100,7 +101,9 @@ def _map_chunk(
     `slenderness`, `size`, every leaf of `base` and of `shared` carry one
     leading cell axis; so do those of `motion`, unless it is one motion for all
     cells (a record, `shared_by_cells`) or a suite of records, of which
-    `motion_index` (else None) gives each cell's record; cells from `count` on
+    `motion_index` (else None) gives each cell's record; `one_base` is the
+    base of every cell without the cell axis, if they share one (else None:
+    an ensemble of bases); cells from `count` on
     are padding and never analysed (`count` is traced: one compile per chunk
     shape). Each iteration of the vmapped loop advances every lane by one step
     attempt (`flat_step`); a lane whose analysis is done writes its result and
@@ -126,11 +129,14 @@ def _map_chunk(
     Returns the responses and carries (one per cell), the lane-steps executed
     (iterations times lanes) and those that advanced an analysis.
     """
+    motion = motion.with_peaks()
+    if one_base is not None:  # (a linear isolator's response to a record)
+        motion = motion.with_translation(one_base)
     chunk = _Chunk(
         slenderness,
         size,
         base,
-        motion.with_peaks(),
+        motion,
         motion_index,
         shared,
         duration,
@@ -996,6 +1002,7 @@ class _ChunkRunner:
         self.motion, self.duration, self.opts = _numpy(
             (grid.motion.unlabeled(), duration, opts)
         )
+        self.one_base = _numpy(grid.base) if grid.base_shape == () else None
         self.devices = jax.local_devices()
 
     def task(self, index, inputs, shared, pilot) -> tuple:
@@ -1017,6 +1024,7 @@ class _ChunkRunner:
             motion,
             suite_index,
             part(shared),
+            self.one_base,
             self.duration,
             self.opts,
             np.asarray(count),

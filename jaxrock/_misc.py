@@ -243,3 +243,19 @@ def where_lanes(mask, new, old):
         new,
         old,
     )
+
+
+def range_maxima(level, pad=0.0):
+    """The table of maxima of `level` (last axis n) over every range of 2^l
+    values, l = 0, 1, ..., L - 1 (2^(L-1) >= n): axis -2. Ranges past the end
+    read `pad`."""
+    n = level.shape[-1]
+    table = [level]
+    width = 1
+    while width < n:
+        tail = jnp.full(level.shape[:-1] + (width,), pad, level.dtype)
+        shifted = jnp.concatenate([level[..., width:], tail], axis=-1)
+        level = jnp.maximum(level, shifted)
+        table.append(level)
+        width *= 2
+    return jnp.stack(table, axis=-2)

@@ -76,7 +76,9 @@ class Carry(eqx.Module):
     # (`quiet_end`), found from an earlier time; NaN: none. Only the flat loop
     # of maps reads it (while `motion.quiet_holds`), and keeps it current in
     # its event batches (`_flat._finish`); `simulate` searches at every step
-    # and leaves it as `initial_carry` set it.
+    # and leaves it as `initial_carry` set it. An isolated base under a
+    # motion with `translation_tables`: the sample from which a lane at rest
+    # searches for a jump (`_flat._rest_jump`).
     quiet_end: Float[Array, ""]
     # On a base with a hysteretic state (costly conditions: a friction
     # pendulum's z), the event conditions' values at (t, y) (`start_conditions`),
@@ -196,9 +198,12 @@ def quiet_level(c: Carry, block, base):
 
 def quiet_end(t, block, base, motion):
     """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
-    uplift level from t on (`motion.quiet_end`; NaN on an isolated base)."""
+    uplift level from t on (`motion.quiet_end`); on an isolated base -1 under
+    a motion with `translation_tables` (a lane at rest searches at its next
+    sample), else NaN."""
     if base.n_states > 0:
-        return jnp.full_like(t, jnp.nan)
+        searched = motion.translation_tables() is not None
+        return jnp.full_like(t, -1.0 if searched else jnp.nan)
     return motion.quiet_end(t, block.uplift_acceleration)
 
 

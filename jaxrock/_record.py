@@ -19,8 +19,10 @@ from ._misc import (
     greater_than_zero,
     parameter,
     real_number,
+    range_maxima,
     scale_factors,
 )
+from ._translation import TranslationTables
 
 
 def _labels(value, n):
@@ -69,6 +71,9 @@ class Record(AbstractGroundMotion):
     # max |x_g''| of `unscaled` over sample ranges [k, k + 2^l) (`with_peaks`),
     # or None.
     peaks: Float[Array, "*records levels n"] | None
+    # A linear isolator's response in translation to the unscaled records
+    # (`with_translation`), or None.
+    translation: TranslationTables | None
     # Inside a map under a suite: the suite's record this one reads (`row`),
     # else None.
     index: Int[Array, ""] | None
@@ -105,6 +110,7 @@ class Record(AbstractGroundMotion):
             name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
         self.name, self.azimuth, self.rsn = name, azimuth, rsn
         self.peaks = None
+        self.translation = None
         self.index = None
 
     def __check_init__(self):
@@ -265,9 +271,9 @@ class Record(AbstractGroundMotion):
         static, so two labels would compile twice)."""
         out = Record(self.unscaled, self.dt, length=self.length, factor=self.factor)
         return eqx.tree_at(
-            lambda r: (r.peaks, r.index),
+            lambda r: (r.peaks, r.translation, r.index),
             out,
-            (self.peaks, self.index),
+            (self.peaks, self.translation, self.index),
             is_leaf=lambda x: x is None,
         )
 
@@ -282,8 +288,24 @@ class Record(AbstractGroundMotion):
         def flat(x, tail=0):  # the batch's axes as one
             return None if x is None else x.reshape((-1,) + x.shape[x.ndim - tail :])
 
+        translation = self.translation
+        if translation is not None:
+            translation = TranslationTables(
+                flat(translation.states, 2),
+                flat(translation.displacement_max, 1),
+                flat(translation.acceleration_peaks, 2),
+                flat(translation.displacement_peaks, 2),
+            )
         return eqx.tree_at(
-            lambda r: (r.unscaled, r.dt, r.length, r.factor, r.peaks, r.index),
+            lambda r: (
+                r.unscaled,
+                r.dt,
+                r.length,
+                r.factor,
+                r.peaks,
+                r.translation,
+                r.index,
+            ),
             self.unlabeled(),
             (
                 flat(self.unscaled, 1),
@@ -291,6 +313,7 @@ class Record(AbstractGroundMotion):
                 flat(self.length),
                 flat(self.factor),
                 flat(self.peaks, 2),
+                translation,
                 jnp.asarray(index),
             ),
             is_leaf=lambda x: x is None,
@@ -303,7 +326,8 @@ class Record(AbstractGroundMotion):
         return eqx.tree_at(lambda r: r.index, axes, 0, is_leaf=lambda x: x is None)
 
     def _read(self, array, *at):
-        """array[at] of `unscaled` or `peaks` of this record: of the suite's
+        """array[at] of `unscaled`, `peaks` or a table of `translation` of this
+        record: of the suite's
         record `index` for a view (the factors' axes lead the batch)."""
         if self.index is None:
             return array[at]
@@ -397,20 +421,25 @@ class Record(AbstractGroundMotion):
         n = level.shape[-1]
         if level.size * _levels(n) * level.dtype.itemsize > _PEAKS_BYTES:
             return self
-        table = [level]
-        width = 1
-        while width < n:
-            pad = jnp.zeros(level.shape[:-1] + (width,), level.dtype)
-            shifted = jnp.concatenate([level[..., width:], pad], axis=-1)
-            level = jnp.maximum(level, shifted)
-            table.append(level)
-            width *= 2
         return eqx.tree_at(
-            lambda r: r.peaks,
-            self,
-            jnp.stack(table, axis=-2),
-            is_leaf=lambda x: x is None,
+            lambda r: r.peaks, self, range_maxima(level), is_leaf=lambda x: x is None
         )
+
+    def with_translation(self, base) -> "Record":
+        """The record with `translation`: the tables of `base`'s response in
+        translation (`_translation.py`; a `LinearIsolator`, one for every
+        lane), None for other bases or where the tables would exceed
+        `_PEAKS_BYTES`. Traceable."""
+        n = self.sample_count
+        if self.unscaled.size * (2 * _levels(n) + 3) * 8 > _PEAKS_BYTES:
+            return self
+        tables = base.translation_tables(self.unscaled, self.dt, self.length)
+        return eqx.tree_at(
+            lambda r: r.translation, self, tables, is_leaf=lambda x: x is None
+        )
+
+    def translation_tables(self):
+        return self.translation
 
     def _next_sample(self, t):
         """The index of the first sample after t (a float) and its time (the
@@ -438,6 +467,47 @@ class Record(AbstractGroundMotion):
         index, _ = self._next_sample(t)
         first = _first_at_least(peak, self.sample_count, index.astype(int), level)
         return first.astype(index.dtype)
+
+    def sample_at(self, t):
+        """(k, exact): the index of the sample nearest t, and whether t is its
+        time (the floats of dt * k, as `next_kink` gives them) within the
+        record."""
+        dt = self._dt
+        k = jnp.round(t / dt)
+        return k, (dt * k == t) & (k <= self._length - 1)
+
+    def sample_time(self, k):
+        """The time of sample k (int): the floats of `next_kink`."""
+        return self._dt * k
+
+    def _scale(self):
+        return 1.0 if self.factor is None else self._of_batch(self.factor)
+
+    def translation_state(self, k):
+        """The base state (u, u') of `translation` at sample k (int)."""
+        return self._scale() * self._read(self.translation.states, k)
+
+    def translation_displacement_max(self, k):
+        """max |u| of `translation` over [0, t_k] (m; k an int)."""
+        return self._scale() * self._read(self.translation.displacement_max, k)
+
+    def translation_first(self, k, acceleration, displacement):
+        """The first sample interval from k (int) on over which a bound of
+        `translation`'s |A| may reach `acceleration` (m/s^2) or of its |u|
+        `displacement` (m); the record's last sample if none."""
+        scale, n = self._scale(), self.sample_count
+        tables = self.translation
+
+        def first(table, level):
+            def peak(width_log, i):
+                return scale * self._read(table, width_log, i)
+
+            return _first_at_least(peak, n, k, level)
+
+        return jnp.minimum(
+            first(tables.acceleration_peaks, acceleration),
+            first(tables.displacement_peaks, displacement),
+        )
 
     def quiet_holds(self, t, quiet_end):
         """`quiet_end` holds until t reaches that sample."""

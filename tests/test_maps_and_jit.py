@@ -138,9 +138,10 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     opts = jr.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
     duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
     count, pilot = np.asarray(LAM.size * SIZE.size), np.asarray(False)
+    one = _maps._numpy(base)  # the base of every cell
     before = _compiles()
     alone = original(
-        (lam, r, bases, motions, None, initial, duration, opts, count, pilot)
+        (lam, r, bases, motions, None, initial, one, duration, opts, count, pilot)
     )
     assert _compiles() == before  # the map's own loop
     for k in _maps._FIELDS:
