@@ -1,6 +1,7 @@
 """Recorded accelerograms: one record, or a suite of records of different
 lengths and time steps, with their labels."""
 
+import dataclasses
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -295,6 +296,7 @@ class Record(AbstractGroundMotion):
                 flat(translation.displacement_max, 1),
                 flat(translation.acceleration_peaks, 2),
                 flat(translation.displacement_peaks, 2),
+                translation.scaled,
             )
         return eqx.tree_at(
             lambda r: (
@@ -429,11 +431,27 @@ class Record(AbstractGroundMotion):
         """The record with `translation`: the tables of `base`'s response in
         translation (`_translation.py`; a `LinearIsolator`, one for every
         lane), None for other bases or where the tables would exceed
-        `_PEAKS_BYTES`. Traceable."""
+        `_PEAKS_BYTES`. Traceable.
+
+        The tables are those of `samples` (the factors multiplied out: a
+        scaled record's map equals, to the bit, that of its samples
+        multiplied out), unless a suite holds several factors per record (at
+        many intensities): then they are those of `unscaled`, one a record,
+        read times each factor (the same response, linear in the factor, to
+        the last bits).
+        """
         n = self.sample_count
-        if self.unscaled.size * (2 * _levels(n) + 3) * 8 > _PEAKS_BYTES:
+        per_factor = self.factor is not None and (
+            self.batch_shape != np.shape(self.unscaled)[:-1]
+        )
+        # (Multiplied out as `samples` would be: no rewrite of XLA's reaches
+        # across the product.)
+        samples = self.unscaled if per_factor else computed_once(self.samples)
+        if samples.size * (2 * _levels(n) + 3) * 8 > _PEAKS_BYTES:
             return self
-        tables = base.translation_tables(self.unscaled, self.dt, self.length)
+        tables = base.translation_tables(samples, self.dt, self.length)
+        if tables is not None:
+            tables = dataclasses.replace(tables, scaled=not per_factor)
         return eqx.tree_at(
             lambda r: r.translation, self, tables, is_leaf=lambda x: x is None
         )
@@ -481,7 +499,10 @@ class Record(AbstractGroundMotion):
         return self._dt * k
 
     def _scale(self):
-        return 1.0 if self.factor is None else self._of_batch(self.factor)
+        """The factor of this record's `translation` tables."""
+        if self.factor is None or self.translation.scaled:
+            return 1.0
+        return self._of_batch(self.factor)
 
     def translation_state(self, k):
         """The base state (u, u') of `translation` at sample k (int)."""

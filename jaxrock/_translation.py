@@ -71,19 +71,21 @@ def free_vibration_bounds(omega, damping, state):
 
 class TranslationTables(eqx.Module):
     """The particular response of a linear isolator's base in translation to
-    a record (or to each record of a suite: leading axes), before the record's
-    scale factor (the response is linear in it).
+    a record (or to each record of a suite: leading axes).
 
     `states`: (u_p, u_p') at the samples (m, m/s). `displacement_max`: max
     |u_p| over [0, t_k] (m). `acceleration_peaks` and `displacement_peaks`:
     bounds of |A_p| (m/s^2) and |u_p| (m) over the intervals [k, k + 2^l)
     (levels l, as `Record.peaks`); inf from the record's last sample on.
+    `scaled`: of the records' samples with their factors multiplied out
+    (else read times the factors, see `Record.with_translation`).
     """
 
     states: Float[Array, "*records n 2"]
     displacement_max: Float[Array, "*records n"]
     acceleration_peaks: Float[Array, "*records levels n"]
     displacement_peaks: Float[Array, "*records levels n"]
+    scaled: bool = eqx.field(static=True, default=False)
 
 
 def _one_record(omega, damping, samples, dt, length):
@@ -170,17 +172,17 @@ def _one_record(omega, damping, samples, dt, length):
 
 def translation_tables(omega, damping, samples, dt, length):
     """`TranslationTables` of a record or suite (`Record.unscaled`, with its
-    `dt` and `length` per record): one per row of `samples`."""
-    if samples.ndim == 1:
-        return _one_record(omega, damping, samples, dt, length)
+    `dt` and `length` per record): one per row of `samples`, a record at a
+    time (`lax.map`, also for one record: a suite's row and the record alone
+    get the same tables to the bit, which a `vmap` over the rows did not)."""
     rows = samples.reshape(-1, samples.shape[-1])
     # A record's dt and length (of the unscaled rows: the batch's trailing axes).
     records = rows.shape[0]
     dt = jnp.reshape(dt, -1)[-records:]
     length = jnp.reshape(length, -1)[-records:]
-    tables = jax.vmap(
-        lambda a, d, n: _one_record(omega, damping, a, d, n)
-    )(rows, dt, length)
+    tables = jax.lax.map(
+        lambda row: _one_record(omega, damping, *row), (rows, dt, length)
+    )
     return jax.tree_util.tree_map(
         lambda x: x.reshape(samples.shape[:-1] + x.shape[1:]), tables
     )
