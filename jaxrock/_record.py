@@ -19,8 +19,8 @@ from ._misc import (
     describe_values,
     greater_than_zero,
     parameter,
-    real_number,
     range_maxima,
+    real_number,
     scale_factors,
 )
 from ._translation import TranslationTables

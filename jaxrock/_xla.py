@@ -21,10 +21,10 @@ same results, but for the last bits of a friction pendulum's z).
 
 `JAXROCK_LOOP_KERNELS=flattened` adds XLA's `xla_cpu_flatten_after_fusion`:
 the fused groups of a kernel are inlined into it, and the compiler optimizes
-across them. Under the Pacoima record the isolators' maps then run in 0.90x
-(linear isolator) and 0.76x (friction pendulum) the time, the fixed base's
+across them. Under the Pacoima record the friction pendulum's map then runs
+in 0.76x the time, the linear isolator's in about 1.0x and the fixed base's
 in 1.09x, and every map compiles 2-4.5x longer: for long campaigns of
-isolator maps, whose compiled loops the cache folder keeps.
+friction-pendulum maps, whose compiled loops the cache folder keeps.
 """
 
 import os
