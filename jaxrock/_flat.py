@@ -629,23 +629,9 @@ def _take_lanes(tree, axes, index):
     )
 
 
-def flat_step(c, block, base, motion, duration, opts, in_axes):
-    """One step attempt of every lane (leading axis); returns the new carries
-    and the attempts (`_Attempt`, before their events were located).
-
-    `block`, `base` and `motion` are batched as `in_axes` says. Most steps end
-    with no event and before their segment's end: their lanes only move on
-    (`move_on`, elementwise). The others (an event, a segment's end, a
-    failure) are gathered in batches (`_batch_size`), in which the root find and
-    `transition` run (in most iterations a few lanes: one batch, and none
-    without).
-    """
-    lanes = c.t.shape[0]
-    a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
-        c, block, base, motion, duration, opts
-    )
-    # The lanes that move on, and those that do not (inactive lanes keep
-    # their carry).
+def _moved(c, a: _Attempt, block, base, motion, in_axes):
+    """The carries of the lanes whose step only moves them on (`move_on`,
+    elementwise; the others are replaced in `flat_step`)."""
     y_end = where_lanes(a.keep, a.y1, a.y0)
     starts = quiet_now = None
     if a.ends is not None:  # the conditions at the step's end start the next
@@ -659,9 +645,77 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     moved = eqx.tree_at(lambda m: m.dt, moved, a.next_dt)
     if starts is not None:
         moved = eqx.tree_at(lambda m: m.start_conditions, moved, starts)
-    active = is_active(c, opts)
-    new = where_lanes(a.moves_on, moved, c)
-    ends = active & ~a.moves_on
+    return moved
+
+
+def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration):
+    """`_rest_jump` of a batch's lanes (None: the motion has no
+    `translation_tables`), computed only if one of them searches."""
+    if motion.translation_tables() is None:
+        return None
+    jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None))
+    block, base = sub.args.block, sub.args.base
+    return jax.lax.cond(
+        jnp.any(sub.searches & valid),
+        lambda: jumps(sub_c, sub, block, base, motion, duration),
+        lambda: _Jump(
+            jnp.zeros_like(sub.searches),
+            sub.t0,
+            sub.y0[2],
+            sub_c.max_u,
+            sub_c.quiet_end,
+        ),
+    )
+
+
+def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts):
+    """The new carries of a batch of lanes whose step does not only move on
+    (`valid`: real lanes; `motion` batched as `motion_axes` says): their
+    events located, jumps, transitions, and next steps."""
+    located = _locate_batch(sub, valid, opts, motion, motion_axes)
+    block, base = sub.args.block, sub.args.base
+    jump = _rest_jumps(sub_c, sub, valid, motion, motion_axes, duration)
+    new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
+        sub_c, sub, located, jump, block, base, motion, duration, opts
+    )
+    found = None
+    if quiet_level(sub_c, block, base) is not None:
+        # Searched only where a lane rests before or after its step (a
+        # rocking lane's `quiet_end` is never read).
+        rest = Phase.TRANSLATION
+        rests = (sub_c.phase == rest) | (new.phase == rest)
+        found = jax.lax.cond(
+            jnp.any(rests & valid),
+            lambda: jax.vmap(_quiet_end_afresh, in_axes=(0, 0, 0, 0, motion_axes))(
+                sub, new, block, base, motion
+            ),
+            lambda: sub_c.quiet_end,
+        )
+    look_ahead = jax.vmap(
+        _look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, 0, motion_axes, None)
+    )
+    return look_ahead(sub_c, sub, located, jump, new, found, block, base, motion, opts)
+
+
+def flat_step(c, block, base, motion, duration, opts, in_axes):
+    """One step attempt of every lane (leading axis); returns the new carries
+    and the attempts (`_Attempt`, before their events were located).
+
+    `block`, `base` and `motion` are batched as `in_axes` says. Most steps end
+    with no event and before their segment's end: their lanes only move on
+    (`_moved`, elementwise). The others (an event, a segment's end, a
+    failure, a search for a jump) are gathered in batches (`_batch_size`), in
+    which the root find and `transition` run (`_end_lanes`; in most
+    iterations a few lanes: one batch, and none without).
+    """
+    lanes = c.t.shape[0]
+    a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
+        c, block, base, motion, duration, opts
+    )
+    # The lanes that move on, and those that do not (inactive lanes keep
+    # their carry).
+    new = where_lanes(a.moves_on, _moved(c, a, block, base, motion, in_axes), c)
+    ends = is_active(c, opts) & ~a.moves_on
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
@@ -678,43 +732,8 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
         index = jnp.minimum(take, lanes - 1)
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
         sub_motion = _take_lanes(motion, motion_axes, index)
-        located = _locate_batch(sub, take < lanes, opts, sub_motion, motion_axes)
-        sub_block, sub_base = sub.args.block, sub.args.base
-        jump = None
-        if motion.translation_tables() is not None:
-            jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None))
-            jump = jax.lax.cond(
-                jnp.any(sub.searches & (take < lanes)),
-                lambda: jumps(sub_c, sub, sub_block, sub_base, sub_motion, duration),
-                lambda: _Jump(
-                    jnp.zeros_like(sub.searches),
-                    sub.t0,
-                    sub.y0[2],
-                    sub_c.max_u,
-                    sub_c.quiet_end,
-                ),
-            )
-        new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
-            sub_c, sub, located, jump, sub_block, sub_base, sub_motion, duration, opts
-        )
-        found = None
-        if quiet_level(sub_c, sub_block, sub_base) is not None:
-            # Searched only where a lane rests before or after its step (a
-            # rocking lane's `quiet_end` is never read).
-            rest = Phase.TRANSLATION
-            rests = (sub_c.phase == rest) | (new.phase == rest)
-            found = jax.lax.cond(
-                jnp.any(rests & (take < lanes)),
-                lambda: jax.vmap(_quiet_end_afresh, in_axes=(0, 0, 0, 0, motion_axes))(
-                    sub, new, sub_block, sub_base, sub_motion
-                ),
-                lambda: sub_c.quiet_end,
-            )
-        look_ahead = jax.vmap(
-            _look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, 0, motion_axes, None)
-        )
-        ended = look_ahead(
-            sub_c, sub, located, jump, new, found, sub_block, sub_base, sub_motion, opts
+        ended = _end_lanes(
+            sub_c, sub, take < lanes, sub_motion, motion_axes, duration, opts
         )
         done = jax.tree_util.tree_map(
             lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended
