@@ -187,12 +187,14 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
     args0 = args1 = args
     if _unrollable(solver):
-        ground = None
-        if not motion.read_per_stage:
-            # x_g'' at the stage times and at t1 in one evaluation.
-            times = jnp.stack(_stage_times(solver.tableau, t0, t1) + [t1])
-            ground = computed_once(jax.vmap(motion.acceleration)(times))
-            args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
+        # x_g'' at the stage times and at t1, read together (a method whose
+        # stages leave [t0, t1] reads them as any times).
+        times = _stage_times(solver.tableau, t0, t1) + [t1]
+        if all(0 <= c <= 1 for c in solver.tableau.c):
+            ground = motion.step_accelerations(times)
+        else:
+            ground = AbstractGroundMotion.step_accelerations(motion, times)
+        args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
         y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args, ground)
         y1, y_error = computed_once((y1, y_error))  # read by most of the step
         solver_result = diffrax.RESULTS.successful
@@ -523,11 +525,15 @@ def _look_ahead(c, a: _Attempt, located, jump, new, found, block, base, motion, 
 # Lanes whose events are located together (a batch of the root find): 8. On
 # the 64 lanes of a loop under a record, batches of 16 take 1.15x the time on
 # the fixed base, of 4 0.98x; on 128 lanes, 16 took 1.02-1.07x, 32 1.15x.
-_BATCH = 8
+# On a base with a hysteretic state, whose events are costly (its conditions
+# read z) and rare (4% of the friction pendulum's steps under a record, 11%
+# of the fixed base's), 4: the friction pendulum's record map takes 0.95x the
+# time of 8, its pulse map the same; 4 on the linear isolator took 1.03x.
+_BATCH, _BATCH_HYSTERETIC = 8, 4
 
 
-def _batch_size(lanes: int) -> int:
-    return min(_BATCH, lanes)
+def _batch_size(lanes: int, base: AbstractIsolator) -> int:
+    return min(_BATCH_HYSTERETIC if base.hysteretic_state else _BATCH, lanes)
 
 
 class _Still(AbstractGroundMotion):
@@ -719,7 +725,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
-    batch = _batch_size(lanes)
+    batch = _batch_size(lanes, base)
     # The lanes that end, in order: the k-th is the first lane whose count of
     # ending lanes up to it is k + 1 (`lanes`, none, past the last).
     count = jnp.sum(ends)

@@ -11,6 +11,7 @@ from ._misc import (
     AbstractChecked,
     Constraint,
     broadcast_batch_shape,
+    computed_once,
     describe_values,
     finite,
     greater_than_zero,
@@ -114,10 +115,13 @@ class AbstractGroundMotion(AbstractChecked):
     # One motion's data are shared by every cell of a map (a record's samples),
     # not gathered per cell.
     shared_by_cells: ClassVar[bool] = False
-    # The flat loop of maps reads x_g'' at each stage of a step (True), or at
-    # all of a step's stage times in one vectorized evaluation (False: one copy
-    # of a closed form in the program, not one a stage).
-    read_per_stage: ClassVar[bool] = False
+
+    def step_accelerations(self, times):
+        """x_g'' (m/s^2) at the times of one step of the flat loop of maps: its
+        stage times and its end, within [t0, t1] (`times[0]` = t0,
+        `times[-1]` = t1). One vectorized evaluation: one copy of a closed
+        form in the program, not one a stage."""
+        return computed_once(jax.vmap(self.acceleration)(jnp.stack(times)))
 
     @property
     def batch_shape(self) -> tuple[int, ...]:

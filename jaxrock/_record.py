@@ -79,10 +79,6 @@ class Record(AbstractGroundMotion):
     # else None.
     index: Int[Array, ""] | None
     shared_by_cells: ClassVar[bool] = True
-    # Read at each stage: reads at all stage times at once were fused
-    # differently from program to program (last-bit differences between a
-    # suite's cell and its record's own map).
-    read_per_stage: ClassVar[bool] = True
     name: str | tuple | None = eqx.field(static=True)
     azimuth: float | tuple | None = eqx.field(static=True)
     rsn: int | tuple | None = eqx.field(static=True)
@@ -391,6 +387,28 @@ class Record(AbstractGroundMotion):
     @property
     def end_time(self):
         return (self._length - 1) * self._dt
+
+    def step_accelerations(self, times):
+        """x_g'' at a step's times from two samples, not two at each time: a
+        step of the flat loop ends at the next sample (`next_kink`), so x_g''
+        is one line over it, that of the sample interval where it starts
+        (the same arithmetic as `acceleration`). A longer step (a block at
+        rest on a fixed base skipping to just before its next uplift, whose
+        vector field reads no x_g'') reads its end exactly, and its inner
+        times on that line."""
+        dt, length = self._dt, self._length
+        index, kink = self._next_sample(times[0])
+        k = jnp.clip(index - 1.0, 0, length - 2).astype(int)
+        a0, a1 = computed_once((self._sample(k), self._sample(k + 1)))
+        end = (length - 1) * dt
+
+        def line(t):
+            value = a0 + (a1 - a0) * (t / dt - k)
+            return jnp.where((t >= 0) & (t <= end), value, 0.0)
+
+        t1 = times[-1]
+        last = jnp.where(t1 > kink, self.acceleration(t1), line(t1))
+        return [line(t) for t in times[:-1]] + [last]
 
     def acceleration_bound(self, t0, t1):
         """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
