@@ -127,3 +127,22 @@ def test_carried_start_conditions_are_the_conditions_at_the_carry():
     c, apart = jax.jit(lambda c: jax.lax.scan(step, c, None, length=3000))(c)
     assert int(jnp.sum(apart)) == 0
     assert int(jnp.sum(c.impacts)) > 30 and int(jnp.sum(c.segments)) > 200
+
+
+def test_a_records_step_reads_the_line_between_its_samples():
+    # A step of the flat loop ends at the next sample: its stages read the
+    # line between the two samples around it, as `acceleration` does at each.
+    rng = np.random.default_rng(3)
+    record = jr.Record(rng.normal(size=50), 0.02)
+    c = np.asarray(diffrax.Tsit5().tableau.c)
+    read = jax.jit(lambda ts: jnp.stack(record.step_accelerations(list(ts))))
+    exact = jax.jit(jax.vmap(record.acceleration))
+    for t0, t1 in [(0.0, 0.02), (0.1, 0.113), (0.113, 0.12), (0.97, 0.98), (0.98, 1.5)]:
+        ts = np.concatenate([[t0], t0 + c * (t1 - t0), [t1]])
+        np.testing.assert_allclose(read(ts), exact(ts), rtol=1e-13, atol=1e-13)
+    # A longer step (a block at rest on a fixed base) reads its end exactly;
+    # past the record's end x_g'' is 0.
+    ts = np.array([0.1, 0.2, 0.35, 0.5])
+    assert read(ts)[-1] == exact(ts)[-1] != 0.0
+    assert read(ts)[0] == pytest.approx(float(exact(ts)[0]), abs=1e-13)
+    assert np.all(read(np.array([1.0, 1.2, 1.4])) == 0.0)
