@@ -64,9 +64,8 @@ def _stage_times(tableau, t0, t1):
 
 class _Known(AbstractGroundMotion):
     """The ground's acceleration at one time, already computed: what a stage of
-    `_erk_step` or a condition at a step's end reads of the motion (one
-    vectorized evaluation at all of a step's times, in `_attempt`, instead of
-    one per stage)."""
+    `_erk_step` or a condition at a step's end reads of the motion (read at
+    all of a step's times together in `_attempt`: `step_accelerations`)."""
 
     value: jax.Array
 
