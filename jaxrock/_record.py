@@ -395,7 +395,9 @@ class Record(AbstractGroundMotion):
         (the same arithmetic as `acceleration`). A longer step (a block at
         rest on a fixed base skipping to just before its next uplift, whose
         vector field reads no x_g'') reads its end exactly, and its inner
-        times on that line."""
+        times on that line. (The line is written out here and in
+        `acceleration`: one helper for both compiled to a slower loop, 1.07-
+        1.11x the fixed base's Pacoima map.)"""
         dt, length = self._dt, self._length
         index, kink = self._next_sample(times[0])
         k = jnp.clip(index - 1.0, 0, length - 2).astype(int)
