@@ -20,7 +20,6 @@ against the same SciPy loop.
 """
 
 import argparse
-import json
 import os
 import resource
 import sys
@@ -37,6 +36,7 @@ import jaxrock as jr  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 import reference as ref  # noqa: E402
+from _results import write_results  # noqa: E402
 
 PULSE = "San Fernando PCD/SN"
 BASES = {
@@ -193,11 +193,7 @@ def main():
             f"{r['numba_speedup_vs_scipy']:.0f}x |"
         )
     md = "\n".join(lines)
-    print(md)
-    out = ROOT / "benchmarks" / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "behavior_map.json").write_text(json.dumps(rows, indent=2))
-    (out / "behavior_map.md").write_text(md + "\n")
+    write_results("behavior_map", rows, md)
 
 
 if __name__ == "__main__":

@@ -6,13 +6,12 @@ batch of 256 blocks (vmapped), San Fernando PCD/SN pulse, rtol 1e-8. Best of
 """
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _results import write_results  # noqa: E402
 
 import jaxrock as jr
 from jaxrock._results import SolverOptions
@@ -66,11 +65,7 @@ def main():
         f"{r['ratio']:.1f} |"
         for r in rows
     ]
-    print("\n".join(md))
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    (out / "gradients.json").write_text(json.dumps(rows, indent=2))
-    (out / "gradients.md").write_text("\n".join(md) + "\n")
+    write_results("gradients", rows, md)
 
 
 if __name__ == "__main__":

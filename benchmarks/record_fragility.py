@@ -9,7 +9,6 @@ benchmarks/results/record_fragility.{json,md} (the fits and the time).
 """
 
 import argparse
-import json
 import os
 import time
 from pathlib import Path
@@ -22,6 +21,8 @@ import numpy as np  # noqa: E402
 
 # Times include compiling: no compiled loop from the cache folder.
 os.environ.setdefault("JAXROCK_CACHE", "off")
+
+from _results import write_results  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 from jaxrock import plot  # noqa: E402
@@ -83,10 +84,7 @@ def main():
         f"{r['not_converged']} |"
         for r in rows
     ]
-    print("\n".join(md))
-    out = ROOT / "benchmarks" / "results"
-    (out / "record_fragility.json").write_text(json.dumps(rows, indent=2))
-    (out / "record_fragility.md").write_text("\n".join(md) + "\n")
+    write_results("record_fragility", rows, md)
 
 
 if __name__ == "__main__":

@@ -19,16 +19,16 @@ writes benchmarks/results/record_maps.{json,md}.
 
 import argparse
 import importlib.resources
-import json
 import os
 import resource
 import time
-from pathlib import Path
 
 import numpy as np
 
 # Compile times are measured cold: no compiled loop from the cache folder.
 os.environ.setdefault("JAXROCK_CACHE", "off")
+
+from _results import write_results  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
@@ -149,11 +149,7 @@ def main():
             f"{r['rtol_changed_1e3']} |"
             for r in converged
         ]
-    print("\n".join(md))
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    (out / f"{a.tag}.json").write_text(json.dumps(rows, indent=2))
-    (out / f"{a.tag}.md").write_text("\n".join(md) + "\n")
+    write_results(a.tag, rows, md)
 
 
 if __name__ == "__main__":

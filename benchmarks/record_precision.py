@@ -18,8 +18,6 @@ a chart, benchmarks/results/record_precision.png.
 """
 
 import argparse
-import json
-from pathlib import Path
 
 import diffrax
 import matplotlib
@@ -27,6 +25,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from _results import FOLDER, write_results  # noqa: E402
 
 # The grid's bases and record, and a cold cache (JAXROCK_CACHE=off), as there.
 from record_maps import BASES, pacoima  # noqa: E402
@@ -105,11 +104,7 @@ def main():
         f"{r['sensitive_cells']} |"
         for r in rows
     ]
-    print("\n".join(md))
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    (out / "record_precision.json").write_text(json.dumps(rows, indent=2))
-    (out / "record_precision.md").write_text("\n".join(md) + "\n")
+    write_results("record_precision", rows, md)
     bases = list(dict.fromkeys(r["base"] for r in rows))
     fig, axes = plt.subplots(1, len(bases), figsize=(4.2 * len(bases), 3.6))
     for ax, name in zip(np.atleast_1d(axes), bases):
@@ -128,7 +123,7 @@ def main():
         ax.set_ylabel("map run time (s)")
         ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "record_precision.png", dpi=90)
+    fig.savefig(FOLDER / "record_precision.png", dpi=90)
 
 
 if __name__ == "__main__":

@@ -7,11 +7,10 @@ benchmarks/results/scaling.{json,md}. Memory stays bounded: only the results
 """
 
 import argparse
-import json
 import resource
-from pathlib import Path
 
 import numpy as np
+from _results import write_results  # noqa: E402
 
 import jaxrock as jr
 
@@ -59,11 +58,7 @@ def main():
         f"{r['peak_rss_mb']:.0f} |"
         for r in rows
     ]
-    print("\n".join(md))
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    (out / "scaling.json").write_text(json.dumps(rows, indent=2))
-    (out / "scaling.md").write_text("\n".join(md) + "\n")
+    write_results("scaling", rows, md)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _results import write_results
+
 SIMULATE = """
 import jaxrock as jr
 r = jr.simulate(jr.Block(4.0, 1.0), jr.LinearIsolator(2.0, 0.35, 0.5),
@@ -208,11 +210,7 @@ def main():
         split=splits,
     )
     md = markdown(result)
-    print(md)
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
-    (out / f"{a.tag}.json").write_text(json.dumps(result, indent=2))
-    (out / f"{a.tag}.md").write_text(md + "\n")
+    write_results(a.tag, result, md)
 
 
 def markdown(result) -> str:

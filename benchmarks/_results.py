@@ -1,0 +1,17 @@
+"""What every benchmark script does with its results: print the Markdown
+table, and write it and the rows to `benchmarks/results/NAME.{md,json}`."""
+
+import json
+from pathlib import Path
+
+FOLDER = Path(__file__).resolve().parent / "results"
+
+
+def write_results(name: str, rows, md: str | list[str]) -> None:
+    """Print `md` (a table, or its lines) and write `NAME.md` and `NAME.json`
+    (`rows`, any JSON-serializable value) to the results folder."""
+    text = md if isinstance(md, str) else "\n".join(md)
+    print(text)
+    FOLDER.mkdir(parents=True, exist_ok=True)
+    (FOLDER / f"{name}.json").write_text(json.dumps(rows, indent=2))
+    (FOLDER / f"{name}.md").write_text(text + "\n")
