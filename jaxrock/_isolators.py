@@ -390,8 +390,8 @@ class FrictionPendulum(AbstractFrictionPendulum):
         c = jnp.where(unloads, unloading, loading)
         start = jnp.where(shrinking & ~unloads, 0.0, zeta0)
         w_piece = jnp.where(shrinking & ~unloads, w - w0, w)
-        s = _solution_sine(c, a, w_piece)
-        zeta = (start + a * s) / (1.0 + c * start * s)
+        num, den = _solution_sine_ratio(c, a, w_piece)
+        zeta = (start * den + a * num) / (den + c * start * num)
         # Read by many kernels (the force, the conditions): computed once.
         return computed_once(jnp.where(d == 0, z_r, d * zeta))
 
@@ -478,19 +478,21 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         return jnp.stack([u_dot, u_ddot, z_dot])
 
 
-def _solution_sine(c, a, w):
-    """S(w) with S(0) = 0 and S' = 1 - a c S^2, for w >= 0: tanh(q w) / q
-    (a c = q^2 > 0), tan(q w) / q (a c = -q^2 < 0), w (c = 0). Then
-    zeta(w) = (zeta0 + a S) / (1 + c zeta0 S) solves zeta' = a - c zeta^2.
+def _solution_sine_ratio(c, a, w):
+    """S(w) = num / den, with S(0) = 0 and S' = 1 - a c S^2, for w >= 0:
+    tanh(q w) / q (a c = q^2 > 0), tan(q w) / q (a c = -q^2 < 0), w (c = 0).
+    Then zeta(w) = (zeta0 + a S) / (1 + c zeta0 S) solves zeta' = a - c zeta^2.
     tanh by `exp` and tan by the polynomial `sincos`: XLA's float64 tanh,
-    tan and arctan are scalar library calls, slow on the CPU."""
+    tan and arctan are scalar library calls, slow on the CPU. A ratio, so
+    that zeta takes one division."""
     x = a * c * w * w
     q = jnp.sqrt(jnp.abs(a * c))
-    safe_q = jnp.where(q == 0, 1.0, q)
-    e = jnp.exp(-2.0 * safe_q * w)
-    sin, cos = sincos(safe_q * w)
-    big = jnp.where(x > 0, (1.0 - e) / (1.0 + e), sin / cos)
-    return jnp.where(jnp.abs(x) < 1e-12, w * (1.0 - x / 3.0), big / safe_q)
+    e = jnp.exp(-2.0 * q * w)
+    sin, cos = sincos(q * w)
+    small = jnp.abs(x) < 1e-12
+    num = jnp.where(small, w * (1.0 - x / 3.0), jnp.where(x > 0, 1.0 - e, sin))
+    den = jnp.where(small, 1.0, jnp.where(x > 0, 1.0 + e, cos) * q)
+    return num, den
 
 
 def _solution_sine_inverse(c, a, v):
