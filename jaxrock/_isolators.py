@@ -496,7 +496,7 @@ def _solution_sine_ratio(c, a, w):
 
 
 def _solution_sine_inverse(c, a, v):
-    """w >= 0 with S(w) = v >= 0 (see `_solution_sine`)."""
+    """w >= 0 with S(w) = v >= 0 (see `_solution_sine_ratio`)."""
     x = a * c * v * v
     q = jnp.sqrt(jnp.abs(a * c))
     safe_q = jnp.where(q == 0, 1.0, q)
