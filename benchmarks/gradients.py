@@ -11,7 +11,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _results import write_results  # noqa: E402
+from _results import markdown_table, write_results  # noqa: E402
 
 import jaxrock as jr
 from jaxrock._results import SolverOptions
@@ -59,12 +59,15 @@ def main():
             dict(blocks=n, value_s=tv, value_and_grad_s=tg, ratio=tg / tv, parameters=2)
         )
         print(rows[-1], flush=True)
-    md = ["| blocks | value (s) | value + gradient (s) | ratio |", "|---|---|---|---|"]
-    md += [
-        f"| {r['blocks']} | {r['value_s']:.4f} | {r['value_and_grad_s']:.4f} | "
-        f"{r['ratio']:.1f} |"
-        for r in rows
-    ]
+    md = markdown_table(
+        rows,
+        [
+            ("blocks", "{blocks}"),
+            ("value (s)", "{value_s:.4f}"),
+            ("value + gradient (s)", "{value_and_grad_s:.4f}"),
+            ("ratio", "{ratio:.1f}"),
+        ],
+    )
     write_results("gradients", rows, md)
 
 

@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 # Times include compiling: no compiled loop from the cache folder.
 os.environ.setdefault("JAXROCK_CACHE", "off")
 
-from _results import write_results  # noqa: E402
+from _results import markdown_table, write_results  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 from jaxrock import plot  # noqa: E402
@@ -72,18 +72,19 @@ def main():
     )
     fig.tight_layout()
     fig.savefig(ROOT / "docs" / "fragility_fema_p695_nearfield_pulse.png", dpi=110)
-    md = [
-        "| base | analyses | time incl. compile (s) | median PGA to rock (m/s^2) "
-        "| beta | median PGA to overturn (m/s^2) | beta | not converged |",
-        "|" + "---|" * 8,
-    ]
-    md += [
-        f"| {r['base']} | {r['analyses']} | {r['seconds']:.1f} | "
-        f"{r['median_rocking_pga']:.3g} | {r['beta_rocking']:.2f} | "
-        f"{r['median_overturning_pga']:.3g} | {r['beta_overturning']:.2f} | "
-        f"{r['not_converged']} |"
-        for r in rows
-    ]
+    md = markdown_table(
+        rows,
+        [
+            ("base", "{base}"),
+            ("analyses", "{analyses}"),
+            ("time incl. compile (s)", "{seconds:.1f}"),
+            ("median PGA to rock (m/s^2)", "{median_rocking_pga:.3g}"),
+            ("beta", "{beta_rocking:.2f}"),
+            ("median PGA to overturn (m/s^2)", "{median_overturning_pga:.3g}"),
+            ("beta", "{beta_overturning:.2f}"),
+            ("not converged", "{not_converged}"),
+        ],
+    )
     write_results("record_fragility", rows, md)
 
 

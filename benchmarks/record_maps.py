@@ -28,7 +28,7 @@ import numpy as np
 # Compile times are measured cold: no compiled loop from the cache folder.
 os.environ.setdefault("JAXROCK_CACHE", "off")
 
-from _results import write_results  # noqa: E402
+from _results import markdown_table, write_results  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
@@ -37,6 +37,9 @@ BASES = {
     "linear": jr.LinearIsolator(2.0, 0.35, 0.5),
     "fps": jr.FrictionPendulum(0.11, 2.24, 0.5),
 }
+# The paper's grid: slenderness 1.0..7.0 by 0.1, size 0.1..4.0 m by 0.1.
+SLENDERNESS = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
+SIZE = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
 
 
 def pacoima():
@@ -87,8 +90,7 @@ def main():
     p.add_argument("--converged", action="store_true")
     p.add_argument("--tag", default="record_maps")
     a = p.parse_args()
-    lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
-    size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
+    lam, size = SLENDERNESS, SIZE
     record = pacoima()
     rows = []
     for name in a.bases.split(","):
@@ -123,32 +125,35 @@ def main():
             motion = "FEMA P695 near-field pulse (28)"
             rows.append(_row(f"{name}, suite", motion, bm, compile_s))
             print(rows[-1], flush=True)
-    md = [
-        "| map | motion | cells | compile (s) | run (s) | analyses/s "
-        "| steps/analysis | lane eff. | not converged | peak RSS (MB) |",
-        "|" + "---|" * 10,
-    ]
-    md += [
-        f"| {r['map']} | {r['motion']} | {r['cells']} | {r['compile_s']:.1f} | "
-        f"{r['run_s']:.2f} | {r['analyses_per_s']:.0f} | "
-        f"{r['steps_per_analysis']:.0f} | {100 * r['lane_efficiency']:.0f}% | "
-        f"{r['not_converged']} | {r['peak_rss_mb']:.0f} |"
-        for r in rows
-    ]
+    md = markdown_table(
+        rows,
+        [
+            ("map", "{map}"),
+            ("motion", "{motion}"),
+            ("cells", "{cells}"),
+            ("compile (s)", "{compile_s:.1f}"),
+            ("run (s)", "{run_s:.2f}"),
+            ("analyses/s", "{analyses_per_s:.0f}"),
+            ("steps/analysis", "{steps_per_analysis:.0f}"),
+            ("lane eff.", "{lane_efficiency:.0%}"),
+            ("not converged", "{not_converged}"),
+            ("peak RSS (MB)", "{peak_rss_mb:.0f}"),
+        ],
+    )
     converged = [r for r in rows if "rtol_changed" in r]
     if converged:
-        md += [
-            "",
-            "| map | rest tolerance 1e-8: cells changed | impacts x "
-            "| rtol 1e-10: cells changed (> 1e-6 / > 1e-3) |",
-            "|---|---|---|---|",
-        ]
-        md += [
-            f"| {r['map']} | {r['rest_tolerance_changed']} | "
-            f"{r['impacts_ratio']:.2f} | {r['rtol_changed']} / "
-            f"{r['rtol_changed_1e3']} |"
-            for r in converged
-        ]
+        md += [""] + markdown_table(
+            converged,
+            [
+                ("map", "{map}"),
+                ("rest tolerance 1e-8: cells changed", "{rest_tolerance_changed}"),
+                ("impacts x", "{impacts_ratio:.2f}"),
+                (
+                    "rtol 1e-10: cells changed (> 1e-6 / > 1e-3)",
+                    "{rtol_changed} / {rtol_changed_1e3}",
+                ),
+            ],
+        )
     write_results(a.tag, rows, md)
 
 

@@ -25,10 +25,10 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from _results import FOLDER, write_results  # noqa: E402
+from _results import FOLDER, markdown_table, write_results  # noqa: E402
 
 # The grid's bases and record, and a cold cache (JAXROCK_CACHE=off), as there.
-from record_maps import BASES, pacoima  # noqa: E402
+from record_maps import BASES, SIZE, SLENDERNESS, pacoima  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
@@ -41,8 +41,7 @@ def main():
     p.add_argument("--bases", default="fixed,linear,fps")
     p.add_argument("--rtols", default="1e-6,1e-7,1e-8,1e-9")
     a = p.parse_args()
-    lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
-    size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
+    lam, size = SLENDERNESS, SIZE
     record = pacoima()
     rtols = [float(r) for r in a.rtols.split(",")]
     rows = []
@@ -92,18 +91,21 @@ def main():
                     )
                 )
                 print(rows[-1], flush=True)
-    md = [
-        "| base | solver | rtol | run (s) | steps/analysis | error p95 | p99 "
-        "| max | outcomes differ | sensitive cells |",
-        "|" + "---|" * 10,
-    ]
-    md += [
-        f"| {r['base']} | {r['solver']} | {r['rtol']:g} | {r['run_s']:.2f} | "
-        f"{r['steps_per_analysis']:.0f} | {r['error_p95']:.1e} | "
-        f"{r['error_p99']:.1e} | {r['error_max']:.1e} | {r['outcomes_differ']} | "
-        f"{r['sensitive_cells']} |"
-        for r in rows
-    ]
+    md = markdown_table(
+        rows,
+        [
+            ("base", "{base}"),
+            ("solver", "{solver}"),
+            ("rtol", "{rtol:g}"),
+            ("run (s)", "{run_s:.2f}"),
+            ("steps/analysis", "{steps_per_analysis:.0f}"),
+            ("error p95", "{error_p95:.1e}"),
+            ("p99", "{error_p99:.1e}"),
+            ("max", "{error_max:.1e}"),
+            ("outcomes differ", "{outcomes_differ}"),
+            ("sensitive cells", "{sensitive_cells}"),
+        ],
+    )
     write_results("record_precision", rows, md)
     bases = list(dict.fromkeys(r["base"] for r in rows))
     fig, axes = plt.subplots(1, len(bases), figsize=(4.2 * len(bases), 3.6))

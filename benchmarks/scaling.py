@@ -10,7 +10,7 @@ import argparse
 import resource
 
 import numpy as np
-from _results import write_results  # noqa: E402
+from _results import markdown_table, write_results  # noqa: E402
 
 import jaxrock as jr
 
@@ -52,12 +52,15 @@ def main():
         )
         print(rows[-1], flush=True)
         n *= 10
-    md = ["| lanes | time (s) | analyses/s | peak RSS (MB) |", "|---|---|---|---|"]
-    md += [
-        f"| {r['lanes']} | {r['seconds']:.2f} | {r['analyses_per_s']:.0f} | "
-        f"{r['peak_rss_mb']:.0f} |"
-        for r in rows
-    ]
+    md = markdown_table(
+        rows,
+        [
+            ("lanes", "{lanes}"),
+            ("time (s)", "{seconds:.2f}"),
+            ("analyses/s", "{analyses_per_s:.0f}"),
+            ("peak RSS (MB)", "{peak_rss_mb:.0f}"),
+        ],
+    )
     write_results("scaling", rows, md)
 
 
