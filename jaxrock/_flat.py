@@ -5,7 +5,8 @@ per segment (`simulate`), an iteration lasts as long as the longest segment of
 any lane, and segments are short and uneven (uplift, apex, impact, new peaks of
 |u|): about half the executed lane-steps were waiting, and each segment paid a
 solve's set-up. Here an iteration advances every lane by one step attempt of
-the same solver and controller (Tsit5 and Diffrax's PIDController by default);
+the same solver and step-size controller (Tsit5 and `StepSizeController` by
+default);
 the same event conditions are checked at the step's end, an event is located
 on the step's dense output by bracketed Newton, and `transition` applies it
 exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
@@ -21,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._controller import KinkClip
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
@@ -28,7 +30,6 @@ from ._isolators import AbstractIsolator
 from ._misc import computed_once, is_none, where_lanes
 from ._model import (
     Conditions,
-    KinkClip,
     event_conditions,
     is_active,
     move_on,

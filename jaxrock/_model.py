@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from ._controller import KinkClip, StepSizeController
 from ._dynamics import (
     Args,
     Phase,
@@ -159,7 +160,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     t_stop = jnp.minimum(t_stop, c.t_limit)
     max_step = motion.max_step
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
-    controller = diffrax.PIDController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
+    controller = StepSizeController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
     quiet_below = quiet_level(c, block, base)
     if motion.next_kink(c.t, quiet_below) is not None:
         controller = KinkClip(controller, motion, quiet_below)
@@ -205,50 +206,6 @@ def quiet_end(t, block, base, motion):
         searched = motion.translation_tables() is not None
         return jnp.full_like(t, -1.0 if searched else jnp.nan)
     return motion.quiet_end(t, block.uplift_acceleration)
-
-
-class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
-    """A step-size controller whose steps end at the motion's kinks (a
-    record's sample times), as Diffrax's `step_ts` do, but with the next kink
-    found from the step's start alone (`next_kink`): `step_ts` sorts and
-    searches all of them in every solve, a cost that grew with the record."""
-
-    controller: diffrax.PIDController
-    motion: AbstractGroundMotion
-    quiet_below: jax.Array | None = None
-
-    @property
-    def rtol(self):
-        return self.controller.rtol
-
-    @property
-    def atol(self):
-        return self.controller.atol
-
-    @property
-    def norm(self):
-        return self.controller.norm
-
-    def wrap(self, direction):
-        return eqx.tree_at(
-            lambda s: s.controller, self, self.controller.wrap(direction)
-        )
-
-    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        t1, state = self.controller.init(
-            terms, t0, t1, y0, dt0, args, func, error_order
-        )
-        return jnp.minimum(t1, self.motion.next_kink(t0, self.quiet_below)), state
-
-    def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
-        keep, next_t0, next_t1, made_jump, state, result = (
-            self.controller.adapt_step_size(
-                t0, t1, y0, y1, args, y_error, error_order, state
-            )
-        )
-        kink = self.motion.next_kink(next_t0, self.quiet_below)
-        next_t1 = jnp.minimum(next_t1, kink)
-        return keep, next_t0, next_t1, made_jump, state, result
 
 
 # A redo ends at least this long (s) before the event it replaces.

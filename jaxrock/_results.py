@@ -157,7 +157,7 @@ class SolverOptions(AbstractChecked):
     theta = 0, linearized).
 
     Args:
-        rtol: the relative tolerance of the PID step-size controller (-),
+        rtol: the relative tolerance of the step-size controller (-),
             > 0; default 1e-8.
         atol: the absolute tolerance (in the state's units: rad, rad/s, m,
             m/s), > 0; default 1e-10.
@@ -168,7 +168,7 @@ class SolverOptions(AbstractChecked):
         rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
             >= 0; default 1e-6.
         solver: a Diffrax solver; default `diffrax.Tsit5()`.
-        step: a fixed step (s), > 0, instead of the PID controller; events are
+        step: a fixed step (s), > 0, instead of the step-size controller; events are
             then located at step ends only (no root find), a naive baseline
             for comparisons. Default None.
 
