@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._controller import KinkClip
+from ._controller import KinkClip, step_end
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
@@ -178,12 +178,12 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     term = diffrax.ODETerm(vector_field)
     solver = opts.solver
     t0, y0 = c.t, c.y
-    t1 = jnp.minimum(t0 + jnp.minimum(c.dt, dtmax), t_stop)
+    dt = jnp.minimum(c.dt, dtmax)
     # (A block at rest: where |x_g''| may reach its uplift level, carried.)
     level = quiet_level(c, block, base)
     kink = motion.next_kink(t0, level, c.quiet_end)
-    if kink is not None:
-        t1 = jnp.minimum(t1, kink)
+    t1 = t0 + dt if kink is None else step_end(t0, dt, kink, motion)
+    t1 = jnp.minimum(t1, t_stop)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
     args0 = args1 = args
     if _unrollable(solver):
@@ -203,20 +203,18 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         y1, y_error, dense, _, solver_result = solver.step(
             term, t0, t1, y0, args, state, made_jump=False
         )
-    # The controller's next step, before it ends at a kink (`KinkClip`).
+    # The controller's next step, before it ends at a kink (`KinkClip`): the
+    # next attempt ends it there (`step_end`).
     pid = controller.controller if isinstance(controller, KinkClip) else controller
     _, ctrl_state = pid.init(term, t0, t1, y0, t1 - t0, args, None, None)
     keep, next_t0, proposed, _, _, ctrl_result = pid.adapt_step_size(
         t0, t1, y0, y1, args, y_error, solver.error_order(term), ctrl_state
     )
-    next_t1 = proposed
     # A block at rest whose quiet stretch ended without an uplift (it rested
     # while |x_g''| was above its level) finds its next one in `_finish`.
     stale = jnp.asarray(False)
-    if kink is not None:
-        next_t1 = jnp.minimum(next_t1, motion.next_kink(next_t0, level, c.quiet_end))
-        if level is not None:
-            stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
+    if kink is not None and level is not None:
+        stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
     # Events: the first condition (in order) that goes from > 0 to <= 0. At
     # t0 they are carried, where the carry has them (the end of the last step).
     crossed, fired, before = [], [], jnp.asarray(False)
@@ -234,7 +232,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     failed = (solver_result != diffrax.RESULTS.successful) | (
         ctrl_result != diffrax.RESULTS.successful
     )
-    next_dt = jnp.where(active, next_t1 - next_t0, c.dt)
+    next_dt = jnp.where(active, proposed - next_t0, c.dt)
     t_end = jnp.where(keep, t1, t0)
     base_end = None if y0[2] is None else jnp.where(keep, y1[2], y0[2])
     moving = moves_on(c, t_end, base_end, failed, base, motion, duration, opts)
@@ -500,26 +498,16 @@ def _quiet_end_afresh(a: _Attempt, new, block, base, motion):
     return quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
 
 
-def _look_ahead(c, a: _Attempt, located, jump, new, found, block, base, motion, opts):
+def _look_ahead(a: _Attempt, located, new):
     """The lane's next step (`new.dt`): the controller's proposal (not the mean
-    step of a segment), on a fixed base ending at the kink that `found`
-    (`_quiet_end_afresh`) gives (`quiet_end` of the step's start may no longer
-    hold at its end). An event whose root find did not converge rejects the
-    step, and the next attempt is at most half as long, ending at or before
-    the bracket's upper end (so each retry gets closer to the root). After a
-    `jump`, the controller's proposal, to end at the next kink."""
+    step of a segment), which the next attempt ends at its kink (`step_end`).
+    An event whose root find did not converge rejects the step, and the next
+    attempt is at most half as long, ending at or before the bracket's upper
+    end (so each retry gets closer to the root)."""
     _, _, converged, upper, _ = located
     retry = a.event & ~converged
-    next_dt = a.next_dt
-    if jump is not None:
-        next_dt = jnp.where(jump.go, a.proposed - a.next_t0, next_dt)
-    level = quiet_level(c, block, base)
-    if level is not None:
-        next_t1 = jnp.minimum(a.proposed, motion.next_kink(a.next_t0, level, found))
-        next_dt = jnp.where(is_active(c, opts), next_t1 - a.next_t0, c.dt)
-        new = eqx.tree_at(lambda n: n.quiet_end, new, found)
     retry_dt = jnp.minimum(upper - a.t0, 0.5 * (a.t1 - a.t0))
-    return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, next_dt))
+    return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, a.next_dt))
 
 
 # Lanes whose events are located together (a batch of the root find): 8. On
@@ -684,10 +672,10 @@ def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts)
     new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
         sub_c, sub, located, jump, block, base, motion, duration, opts
     )
-    found = None
     if quiet_level(sub_c, block, base) is not None:
-        # Searched only where a lane rests before or after its step (a
-        # rocking lane's `quiet_end` is never read).
+        # Where the next attempt may end (`step_end`), searched only where a
+        # lane rests before or after its step (a rocking lane's `quiet_end` is
+        # never read): `quiet_end` of the step's start may no longer hold.
         rest = Phase.TRANSLATION
         rests = (sub_c.phase == rest) | (new.phase == rest)
         found = jax.lax.cond(
@@ -697,10 +685,8 @@ def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts)
             ),
             lambda: sub_c.quiet_end,
         )
-    look_ahead = jax.vmap(
-        _look_ahead, in_axes=(0, 0, 0, 0, 0, 0, 0, 0, motion_axes, None)
-    )
-    return look_ahead(sub_c, sub, located, jump, new, found, block, base, motion, opts)
+        new = eqx.tree_at(lambda n: n.quiet_end, new, found)
+    return jax.vmap(_look_ahead)(sub, located, new)
 
 
 def flat_step(c, block, base, motion, duration, opts, in_axes):
