@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrock._controller import StepSizeController
+import jaxrock as jr
+from jaxrock._controller import StepSizeController, step_end
 
 
 def _decide(controller, t0, t1, y0, y1, y_error, error_order):
@@ -49,3 +50,22 @@ def test_a_nan_error_rejects_the_step():
         controller, 0.0, 0.01, y0, y1, (jnp.asarray(jnp.nan),), 5.0
     )
     assert not bool(keep) and float(next_t0) == 0.0
+
+
+def test_steps_to_a_sample_are_equal_and_end_on_it():
+    record = jr.Record(np.zeros(100), dt=0.01)
+    t0 = 0.0133
+    kink = float(record.next_kink(jnp.asarray(t0)))
+    assert kink == 0.02
+    # 3 equal steps where the controller proposes 0.0025 s (ceil(0.0067 / 0.0025)).
+    t1 = float(step_end(t0, 0.0025, kink, record))
+    assert t1 == pytest.approx(t0 + (kink - t0) / 3, rel=1e-15)
+    assert float(step_end(t0, 0.05, kink, record)) == kink  # exactly the sample
+    # Far from the sample (more than 8 steps): the proposal.
+    assert float(step_end(t0, 0.0005, kink, record)) == t0 + 0.0005
+
+
+def test_a_closed_form_bound_cuts_the_step_without_equal_steps():
+    pulse = jr.near_fault_pulse("Northridge JFA/SN")
+    assert float(step_end(0.0, 0.0025, 0.0067, pulse)) == 0.0025
+    assert float(step_end(0.0, 0.01, 0.0067, pulse)) == 0.0067
