@@ -1,4 +1,5 @@
-"""The step-size controller against Diffrax's PIDController at its defaults."""
+"""The step-size controller against Diffrax's PIDController at its defaults, and
+the ends of steps at a motion's kinks."""
 
 import diffrax
 import jax
