@@ -34,9 +34,9 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
     and the next step (from y1 if kept, else again from y0) has size
     h clip(0.9 err^(-1/q), 1, 10) if kept, h clip(0.9 err^(-1/q), 0.2, 0.9)
     if not, at most `dtmax` (q: the solver's error order). The power is
-    exp(-log(err) / q): XLA vectorizes exp and log over lanes, where a float64
-    power is a scalar library call per lane (about 5% of a map's step). Derivatives do
-    not flow through step sizes.
+    exp(-log(err) / q): XLA vectorizes exp and log over lanes, where a
+    float64 power is a scalar library call per lane (5% of the fixed base's
+    record map). Derivatives do not flow through step sizes.
     """
 
     rtol: float
@@ -89,8 +89,9 @@ def step_end(t0, dt, kink, motion: AbstractGroundMotion):
     Steps of dt and a short remainder would leave the controller a step much
     shorter than it proposed, from which it grows the next one again: under
     the Pacoima record, equal steps take 3% fewer steps on a friction
-    pendulum (0.97x the time of its map) and 0.95x the time of the fixed
-    base's map."""
+    pendulum (0.97x the time of its map, and a 3.5 times smaller error of max
+    rotation at the 95th percentile) and 0.96x the time of the linear
+    isolator's map."""
     if motion.sample_count == 0:
         return jnp.minimum(t0 + dt, kink)
     n = jnp.ceil((kink - t0) / dt)

@@ -168,9 +168,9 @@ class SolverOptions(AbstractChecked):
         rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
             >= 0; default 1e-6.
         solver: a Diffrax solver; default `diffrax.Tsit5()`.
-        step: a fixed step (s), > 0, instead of the step-size controller; events are
-            then located at step ends only (no root find), a naive baseline
-            for comparisons. Default None.
+        step: a fixed step (s), > 0, instead of the step-size controller;
+            events are then located at step ends only (no root find), a
+            naive baseline for comparisons. Default None.
 
     Raises:
         ValueError: a concrete tolerance or step out of its range, or a limit
