@@ -50,7 +50,7 @@ class Record(AbstractGroundMotion):
     batch's shape.
 
     Labels for titles and tables, static (they never enter a computation):
-    `name` (event, station and component), `azimuth` (the component's
+    `name` (event, station and component; "" is none), `azimuth` (the component's
     direction, degrees clockwise from north; None if unknown) and `rsn` (the
     PEER record sequence number; None if unknown). Of a suite, tuples.
 
@@ -105,6 +105,9 @@ class Record(AbstractGroundMotion):
         if self.batch_shape:  # a suite: one label per record
             count = int(np.prod(self.batch_shape))
             name, azimuth, rsn = (_labels(v, count) for v in (name, azimuth, rsn))
+            name = tuple(None if n == "" else n for n in name)
+        elif name == "":
+            name = None
         self.name, self.azimuth, self.rsn = name, azimuth, rsn
         self.peaks = None
         self.translation = None

@@ -345,3 +345,11 @@ def test_design_objective_over_a_suite_is_that_of_its_records():
         mean = np.mean([g[name] for g, _ in alone])
         np.testing.assert_allclose(grad[name], mean, rtol=1e-8)
         assert grad[name] != 0
+
+
+def test_an_empty_record_name_is_no_name():
+    # A map's file stores a missing name as "": an empty name reads back as it was.
+    x = np.sin(np.linspace(0.0, 6.0, 300))
+    assert jr.Record(x, 0.01, name="").name is None
+    suite = jr.Record.stack([jr.Record(x, 0.01, name=""), jr.Record(x, 0.01, name="b")])
+    assert suite.names() == (None, "b")
