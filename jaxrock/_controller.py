@@ -15,9 +15,6 @@ from jaxtyping import Array
 
 from ._ground import AbstractGroundMotion
 
-# A step within this many proposed steps of a kink is one of equal steps to it.
-_EQUAL_STEPS = 8
-
 # Diffrax's `PIDController` defaults.
 _SAFETY = 0.9
 _FACTOR_MIN = 0.2
@@ -78,33 +75,12 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
         return keep, next_t0, next_t0 + dt, False, state, diffrax.RESULTS.successful
 
 
-def step_end(t0, dt, kink, motion: AbstractGroundMotion):
-    """The end of a step of at most dt (s) from t0 that stops at `kink` (s,
-    > t0; inf: none), the motion's `next_kink`. Under a record (whose kinks
-    are its samples): t0 + dt if the kink is n > 8 steps of dt away, else
-    t0 + (kink - t0) / n, the first of n equal steps to the kink, and the
-    kink itself for n = 1. Under a closed form (whose kink only bounds where
-    a block at rest could uplift, and moves with t0): min(t0 + dt, kink).
-
-    Steps of dt and a short remainder would leave the controller a step much
-    shorter than it proposed, from which it grows the next one again: under
-    the Pacoima record, equal steps take 3% fewer steps on a friction
-    pendulum (0.97x the time of its map, and a 3.5 times smaller error of max
-    rotation at the 95th percentile) and 0.96x the time of the linear
-    isolator's map."""
-    if motion.sample_count == 0:
-        return jnp.minimum(t0 + dt, kink)
-    n = jnp.ceil((kink - t0) / dt)
-    equal = jnp.where(n <= 1, kink, t0 + (kink - t0) / n)
-    return jnp.where(n <= _EQUAL_STEPS, equal, t0 + dt)
-
-
 class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
     """A step-size controller whose steps end at the motion's kinks (a
-    record's sample times, `step_end`), as Diffrax's `step_ts` do, but with
-    the next kink found from the step's start alone (`next_kink`): `step_ts`
-    sorts and searches all of them in every solve, a cost that grew with the
-    record."""
+    record's sample times; `AbstractGroundMotion.step_end`), as Diffrax's
+    `step_ts` do, but with the next kink found from the step's start alone
+    (`next_kink`): `step_ts` sorts and searches all of them in every solve, a
+    cost that grew with the record."""
 
     controller: StepSizeController
     motion: AbstractGroundMotion
@@ -132,7 +108,7 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
             terms, t0, t1, y0, dt0, args, func, error_order
         )
         kink = self.motion.next_kink(t0, self.quiet_below)
-        return step_end(t0, t1 - t0, kink, self.motion), state
+        return self.motion.step_end(t0, t1 - t0, kink), state
 
     def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
         keep, next_t0, next_t1, made_jump, state, result = (
@@ -141,5 +117,5 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
             )
         )
         kink = self.motion.next_kink(next_t0, self.quiet_below)
-        next_t1 = step_end(next_t0, next_t1 - next_t0, kink, self.motion)
+        next_t1 = self.motion.step_end(next_t0, next_t1 - next_t0, kink)
         return keep, next_t0, next_t1, made_jump, state, result

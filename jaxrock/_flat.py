@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._controller import KinkClip, step_end
+from ._controller import KinkClip
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._ground import AbstractGroundMotion
@@ -182,7 +182,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     # (A block at rest: where |x_g''| may reach its uplift level, carried.)
     level = quiet_level(c, block, base)
     kink = motion.next_kink(t0, level, c.quiet_end)
-    t1 = t0 + dt if kink is None else step_end(t0, dt, kink, motion)
+    t1 = t0 + dt if kink is None else motion.step_end(t0, dt, kink)
     t1 = jnp.minimum(t1, t_stop)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
     args0 = args1 = args
@@ -204,11 +204,11 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
             term, t0, t1, y0, args, state, made_jump=False
         )
     # The controller's next step, before it ends at a kink (`KinkClip`): the
-    # next attempt ends it there (`step_end`).
+    # next attempt ends it there (`step_end`). (`StepSizeController` keeps no
+    # state between steps.)
     pid = controller.controller if isinstance(controller, KinkClip) else controller
-    _, ctrl_state = pid.init(term, t0, t1, y0, t1 - t0, args, None, None)
     keep, next_t0, proposed, _, _, ctrl_result = pid.adapt_step_size(
-        t0, t1, y0, y1, args, y_error, solver.error_order(term), ctrl_state
+        t0, t1, y0, y1, args, y_error, solver.error_order(term), None
     )
     # A block at rest whose quiet stretch ended without an uplift (it rested
     # while |x_g''| was above its level) finds its next one in `_finish`.

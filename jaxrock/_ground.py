@@ -73,6 +73,12 @@ class AbstractGroundMotion(AbstractChecked):
         del t, quiet_below, quiet_end
         return None
 
+    def step_end(self, t0, dt, kink) -> Float[Array, ""]:
+        """The end of a step of at most dt (s) from t0 that stops at `kink`
+        (`next_kink`, s; inf: none): min(t0 + dt, kink). (A closed form's kink
+        only bounds where a block at rest could uplift, and moves with t0.)"""
+        return jnp.minimum(t0 + dt, kink)
+
     def quiet_holds(self, t: Float[Array, ""], quiet_end) -> Bool[Array, ""]:
         """Whether `quiet_end` (of an earlier time) holds at t, where
         `next_kink` reads it."""

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxrock as jr
-from jaxrock._controller import StepSizeController, step_end
+from jaxrock._controller import StepSizeController
 
 
 def _decide(controller, t0, t1, y0, y1, y_error, error_order):
@@ -59,14 +59,14 @@ def test_steps_to_a_sample_are_equal_and_end_on_it():
     kink = float(record.next_kink(jnp.asarray(t0)))
     assert kink == 0.02
     # 3 equal steps where the controller proposes 0.0025 s (ceil(0.0067 / 0.0025)).
-    t1 = float(step_end(t0, 0.0025, kink, record))
+    t1 = float(record.step_end(t0, 0.0025, kink))
     assert t1 == pytest.approx(t0 + (kink - t0) / 3, rel=1e-15)
-    assert float(step_end(t0, 0.05, kink, record)) == kink  # exactly the sample
+    assert float(record.step_end(t0, 0.05, kink)) == kink  # exactly the sample
     # Far from the sample (more than 8 steps): the proposal.
-    assert float(step_end(t0, 0.0005, kink, record)) == t0 + 0.0005
+    assert float(record.step_end(t0, 0.0005, kink)) == t0 + 0.0005
 
 
 def test_a_closed_form_bound_cuts_the_step_without_equal_steps():
     pulse = jr.near_fault_pulse("Northridge JFA/SN")
-    assert float(step_end(0.0, 0.0025, 0.0067, pulse)) == 0.0025
-    assert float(step_end(0.0, 0.01, 0.0067, pulse)) == 0.0067
+    assert float(pulse.step_end(0.0, 0.0025, 0.0067)) == 0.0025
+    assert float(pulse.step_end(0.0, 0.01, 0.0067)) == 0.0067
