@@ -258,7 +258,9 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
             zeros; if `starts` or `steps` is not a positive integer (the
             message names the parameter); or, after the fit, if the record
             is shorter than the fitted pulse's period 1/f_p (it does not
-            hold a whole cycle, so the pulse is not determined).
+            hold a whole cycle, so the pulse is not determined; a velocity
+            that drifts far beyond the pulse, from a trend in the
+            acceleration, gives such a fit too).
 
     Examples:
         >>> import numpy as np, jaxrock as jr
@@ -306,7 +308,9 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
             f"`record` lasts {duration:g} s, less than the period 1/f_p = "
             f"{1.0 / f:.3g} s of the pulse fitted to it: the record does not hold "
             "a whole cycle of its pulse, so the pulse is not determined; fit a "
-            "longer record"
+            "longer record, or, if the record's velocity drifts (a trend in its "
+            "acceleration, which the fit's linear baseline does not remove), "
+            "correct its baseline first"
         )
     return _scored(u, dt, MPPulse(amplitude, f, gamma, nu % 360.0, t0=t0))
 

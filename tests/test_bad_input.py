@@ -263,3 +263,60 @@ def test_history_is_sampled_by_time_not_by_count():
     fine = jr.simulate(block, base, PULSE, history=True, history_step=0.002)
     assert np.diff(fine.history.t).max() <= 0.002 + 1e-12
     assert float(fine.max_rotation) == float(long.max_rotation)
+
+
+# -- a record's dt and simulate's duration ----------------------------------------
+
+SAMPLES = 5.0 * np.sin(0.1 * np.arange(1000))  # m/s^2: uplifts a Block(4.0, 1.0)
+
+
+@pytest.mark.parametrize("dt", [1e-300, 1e-7, 1.5, 1e308, float("inf")])
+def test_record_dt_out_of_range_names_dt_and_the_range(dt):
+    # At dt = 1e-300 the whole record is shorter than the event tolerance
+    # (1e-12 s): it gave ROCKING, SUCCESS and a max rotation of exactly 0; at
+    # 1e308 the end time is inf, and `simulate` blamed `duration`.
+    with pytest.raises(
+        ValueError, match=r"`dt` must be finite, >= 1e-06 and <= 1 \(s\)"
+    ):
+        jr.Record(SAMPLES, dt)
+
+
+def test_traced_record_dt_out_of_range_is_invalid():
+    valid = jax.jit(lambda dt: jr.Record(SAMPLES, dt).valid())
+    assert bool(valid(0.01)) and bool(valid(1e-6)) and bool(valid(1.0))
+    assert not bool(valid(1e-300)) and not bool(valid(1e308))
+
+
+def test_uplift_at_the_smallest_dt_is_located_as_at_a_usual_one():
+    """On a fixed base a block uplifts where |x_g''| first reaches g tan alpha:
+    at the same fraction of the record whatever its dt. At dt = 1e-6 s (the
+    lower end of the range) the uplift is found there to 1e-6 of a sample
+    interval; at 1e-12 s it was 0.9 of one off (the event tolerance)."""
+    block = jr.Block(4.0, 1.0)
+    run = jax.jit(
+        lambda dt: jr.simulate(block, jr.FixedBase(), jr.Record(SAMPLES, dt)),
+    )
+    usual, smallest = run(0.01), run(1e-6)
+    assert int(usual.status) == int(smallest.status) == jr.Status.SUCCESS
+    in_samples = float(usual.uplift_time) / 0.01
+    assert float(smallest.uplift_time) / 1e-6 == pytest.approx(in_samples, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    "duration, message",
+    [
+        ([10.0], r"`duration` must be one number, finite and > 0 \(s\), got an array"),
+        (np.ones((1, 1)), r"`duration` must be one number.*shape \(1, 1\)"),
+        ("10", "`duration` must be a real number"),
+    ],
+)
+def test_duration_that_is_not_one_number_is_named(duration, message):
+    with pytest.raises(ValueError, match=message):
+        jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), PULSE, duration=duration)
+
+
+def test_history_step_that_is_not_one_number_is_named():
+    with pytest.raises(ValueError, match="`history_step` must be one number"):
+        jr.simulate(
+            jr.Block(4.0, 1.0), jr.FixedBase(), PULSE, history=True, history_step=[0.1]
+        )

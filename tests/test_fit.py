@@ -128,6 +128,26 @@ def test_record_shorter_than_its_pulse_period():
         jr.fit_pulse(record)
 
 
+def test_offset_of_the_acceleration_is_absorbed_by_the_baseline():
+    """A constant offset of the acceleration is a line in the velocity, which
+    the baseline fitted with the pulse removes exactly, however large."""
+    fit = jr.fit_pulse(jr.Record(_synthetic_acceleration() + 30.0, DT))
+    for name in ("amplitude", "frequency", "gamma", "t0"):
+        assert float(getattr(fit.pulse, name)) == pytest.approx(TRUE[name], rel=1e-4)
+    assert float(fit.correlation) > 0.9999
+
+
+def test_trend_of_the_acceleration_far_beyond_the_pulse_is_refused():
+    """A trend of the acceleration is a parabola in the velocity, which the
+    linear baseline does not remove: at 0.1 m/s^3 (a drift of 7 m/s over the
+    record, against a pulse of 0.8 m/s) the fit is a "pulse" longer than the
+    record, refused with the advice to correct the baseline."""
+    t = np.arange(0.0, 12.0, DT)
+    record = jr.Record(_synthetic_acceleration() + 0.1 * (t - 6.0), DT)
+    with pytest.raises(ValueError, match="period 1/f_p.*correct its baseline"):
+        jr.fit_pulse(record)
+
+
 def test_score_pulse_and_its_picture():
     """`score_pulse` of the pulse a record is made of, of it reversed and of a
     pulse that misses the record; `plot.pulse_fit` draws both histories."""
