@@ -8,6 +8,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._files import atomic_write
 from ._misc import broadcast_batch_shape
 from ._record import Record
 from ._results import Outcome, Status
@@ -219,17 +220,18 @@ def suffix(path) -> str:
 
 def write(ds, path, kind: str) -> None:
     """Write `ds` to a NetCDF-4 file (".nc", by h5netcdf) or a Zarr store
-    (".zarr", replaced if it exists)."""
+    (".zarr", replaced if it exists), whole or not at all (`atomic_write`:
+    `OSError` naming `path`)."""
     if kind == ".nc":
         require("h5netcdf")
-        ds.to_netcdf(path, engine="h5netcdf")
+        atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
         return
     require("zarr")
     path = Path(path)
     store = path.is_dir() and (not any(path.iterdir()) or (path / "zarr.json").exists())
     if path.exists() and not store:
         raise ValueError(f"`path` {str(path)!r} exists and is not a Zarr store")
-    ds.to_zarr(path, mode="w", consolidated=False)
+    atomic_write(path, lambda tmp: ds.to_zarr(tmp, mode="w", consolidated=False))
 
 
 def read(path, kind: str):

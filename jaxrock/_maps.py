@@ -17,6 +17,7 @@ from . import _cache
 from ._block import Block
 from ._dynamics import Phase
 from ._executor import check_executor, run_tasks
+from ._files import atomic_write
 from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
@@ -579,9 +580,15 @@ class BehaviorMap(eqx.Module):
             path: the file's path (str or path-like), ending in `.npz`, `.nc`
                 or `.zarr`; NumPy appends `.npz` to a name without a suffix.
 
+        The file is written under a temporary name beside `path` and renamed
+        over it once whole (`.zarr`: the folder): a full disk or an
+        interruption leaves a file already at `path` as it was.
+
         Raises:
             ValueError: any other suffix, or a `.zarr` path that exists and is
                 not a Zarr store.
+            OSError: the file cannot be written (a full disk, no permission);
+                the message names `path`.
 
         Examples:
             >>> import os, tempfile, jaxrock as jr
@@ -606,7 +613,12 @@ class BehaviorMap(eqx.Module):
         meta = {k: None if v != v else v for k, v in meta.items()}
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
         metadata = json.dumps(meta, allow_nan=False)
-        np.savez_compressed(path, metadata=np.array(metadata), **arrays)
+        if not str(path).endswith(".npz"):  # the name NumPy would write
+            path = f"{path}.npz"
+        atomic_write(
+            path,
+            lambda tmp: np.savez_compressed(tmp, metadata=np.array(metadata), **arrays),
+        )
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
@@ -706,9 +718,41 @@ def _check_map_arrays(arrays: dict) -> None:
     for k in _FIELDS:
         if arrays[k].shape != shape:
             raise ValueError(f"{k} has shape {arrays[k].shape}, outcome {shape}")
+    _check_codes(arrays)
+
+
+def _check_codes(arrays: dict) -> None:
+    """`ValueError` unless outcome and status hold known codes."""
     for k, codes in (("outcome", Outcome), ("status", Status)):
         if not np.isin(arrays[k], [int(c) for c in codes]).all():
             raise ValueError(f"{k} holds codes other than {[int(c) for c in codes]}")
+
+
+def _check_chunk(arrays: dict, cells=None) -> None:
+    """`ValueError` unless a stored chunk's arrays agree: a 1-D index of
+    cells (`cells`, if given), a value of each field per cell, floats or
+    integers as computed, known codes, and its lane-step counts."""
+    index = arrays["index"]
+    if index.ndim != 1 or index.dtype.kind not in "iu":
+        raise ValueError(f"its index is not cells: {index.dtype} {index.shape}")
+    if cells is not None and not np.array_equal(index, cells):
+        raise ValueError("its cells are not those the store's order deals it")
+    floats = ("max_rotation", "max_base_displacement", "uplift_time")
+    for k in _FIELDS:
+        x = arrays[k]
+        if x.shape != index.shape or x.dtype.kind not in ("f" if k in floats else "iu"):
+            raise ValueError(f"{k} is {x.dtype} {x.shape}, for {index.size} cells")
+    _check_codes(arrays)
+    _check_counts(arrays)
+
+
+def _check_counts(arrays: dict) -> None:
+    """`ValueError` unless the lane-step counts "useful" and "executed" are
+    integers, 0 <= useful <= executed."""
+    useful, executed = arrays["useful"], arrays["executed"]
+    numbers = all(x.shape == () and x.dtype.kind in "iu" for x in (useful, executed))
+    if not (numbers and 0 <= useful <= executed):
+        raise ValueError(f"lane-step counts useful {useful}, executed {executed}")
 
 
 def _leaf_digest(module) -> str:
@@ -1157,7 +1201,8 @@ def behavior_map(
     New grids, pulses or isolator parameters reuse the compile.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
-    only the missing chunks, dealt the cells as the first run dealt them).
+    only the missing chunks, dealt the cells as the first run dealt them; a
+    damaged chunk is computed again, with a `RuntimeWarning` naming it).
 
     `executor`, a `concurrent.futures.Executor` (a `ProcessPoolExecutor`, a
     Dask cluster's `Client.get_executor()`, an `mpi4py.futures.MPIPoolExecutor`),
@@ -1192,22 +1237,41 @@ def behavior_map(
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
 
     t = time.perf_counter()
-    results = {} if store is None else store.chunks(chunks)  # from an earlier run
+    # From an earlier run: its chunks, and the pilots' counts once all are there.
+    results, counts = ({}, None) if store is None else _stored(store, grid, chunks)
     bar = _progress_bar(progress, chunks, len(results), type(base).__name__)
-    useful = executed = 0
-    if len(results) < chunks:
+    if counts is None:
         starts, useful, executed = _run_pilots(runner, grid, chunk)
         if store is not None:  # for `lane_efficiency` of a map read back whole
             store.write("pilots", dict(useful=useful, executed=executed))
         results |= _run_cells(runner, grid, starts, chunks, results, store, bar)
-    else:  # every chunk from the store: the pilots' counts too, if stored
-        pilots = store.read("pilots", ("useful", "executed")) or {}
-        useful, executed = (int(pilots.get(k, 0)) for k in ("useful", "executed"))
+    else:  # every chunk from the store
+        useful, executed = counts
     if bar is not None:
         bar.close()
     seconds = time.perf_counter() - t
     results = [results[k] for k in range(chunks)]
     return _assemble(grid, results, seconds, useful, executed)
+
+
+def _stored(store: ChunkStore, grid: _Grid, chunks: int):
+    """What an earlier run left in `store`: {k: chunk k} of the chunks whose
+    arrays agree (`_check_chunk`; with the order stored, chunk k holds the
+    cells it deals chunk k), and the pilots' lane-step counts (useful,
+    executed) if every chunk, the order and the counts are there, else None
+    (the pilots run again)."""
+    order = store.order(grid.n)
+
+    def check(k, arrays):
+        _check_chunk(arrays, None if order is None else order[k::chunks])
+
+    results = store.chunks(chunks, check)
+    if len(results) < chunks or order is None:
+        return results, None
+    pilots = store.read("pilots", ("useful", "executed"), _check_counts)
+    if pilots is None:
+        return results, None
+    return results, (int(pilots["useful"]), int(pilots["executed"]))
 
 
 def _progress_bar(progress: bool, chunks: int, done: int, base: str):
@@ -1228,10 +1292,15 @@ def _run_cells(runner: _ChunkRunner, grid: _Grid, starts, chunks, done, store, b
     # Cells by start time (the most work first), dealt to the chunks in turn:
     # chunks of equal work, and short analyses fill each one's tail. A store
     # keeps its first run's order: a rerun whose pilots differ in their last
-    # bits (other hardware) deals the same chunks.
+    # bits (other hardware) deals the same chunks; one whose order was lost
+    # deals them anew, and a stored chunk dealt otherwise is computed again.
     order = np.argsort(starts.t, kind="stable")
     if store is not None:
         order = store.dealt(order)
+        same = {k: np.array_equal(done[k]["index"], order[k::chunks]) for k in done}
+        for k in (k for k in done if not same[k]):
+            store.damaged(store.path(k), "its cells are not those its order deals it")
+        done = {k: c for k, c in done.items() if same[k]}
     cells = {k: order[k::chunks] for k in range(chunks) if k not in done}
 
     def finished(k, out):

@@ -15,6 +15,7 @@ import re
 import sys
 import textwrap
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 # matplotlib picks the format from the suffix: these three are checked here so
 # that a typo fails before the computation, not at the end of it.
@@ -471,6 +472,19 @@ def _check_out(out: str) -> str:
     return out
 
 
+def _check_store(folder: str | None) -> None:
+    """--store names a folder, or one to make: no file on its path."""
+    if folder is None:
+        return
+    if not folder.strip():
+        raise ValueError("--store: empty folder name")
+    for path in (Path(folder), *Path(folder).parents):
+        if path.exists():
+            if not path.is_dir():
+                raise ValueError(f"--store: {path} is a file, not a folder")
+            return
+
+
 def _check_record(path: str) -> None:
     if os.path.isdir(path):
         raise ValueError(f"--record: {path} is a folder, not a file")
@@ -597,10 +611,14 @@ def _use_agg() -> None:
     matplotlib.use("Agg")
 
 
-def _save(figure, out: str) -> None:
-    """Writes `figure` to `out` and says so."""
-    figure.savefig(out, dpi=120)
-    print(f"wrote {out}")
+def _save(figure, out: str, say: bool = True) -> None:
+    """Writes `figure` to `out`, whole or not at all (a full disk leaves a
+    file already there as it was), and with `say` says so."""
+    from jaxrock._files import atomic_write
+
+    atomic_write(out, lambda tmp: figure.savefig(tmp, dpi=120))
+    if say:
+        print(f"wrote {out}")
 
 
 def _run_pulses(a) -> int:
@@ -768,6 +786,7 @@ def _run_fragility(a) -> int:
 
 
 def _run_map(a) -> int:
+    _check_store(a.store)
     out, motion, base, name = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot
@@ -800,7 +819,7 @@ def _run_map(a) -> int:
     else:  # a suite: a row of bases for each record
         panels = [bm.select(i) for i in range(maps[0].outcome.shape[0]) for bm in maps]
         titles = [f"{bm.motion}\n{bm.base}" for bm in panels]
-    plot.compare_maps(panels, titles, columns=len(maps)).savefig(out, dpi=120)
+    _save(plot.compare_maps(panels, titles, columns=len(maps)), out, say=False)
     print(f"wrote {out} and {stem}_*.npz")
     return 0
 

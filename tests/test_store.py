@@ -1,7 +1,11 @@
-"""The chunk store of maps (resume, refusal of another map's chunks, unreadable
-chunks) and `BehaviorMap.save` / `load`."""
+"""The chunk store of maps (resume, refusal of another map's chunks, damaged
+chunks, manifest and pilots' counts, a full disk) and `BehaviorMap.save` /
+`load`."""
 
+import errno
 import json
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -75,7 +79,8 @@ def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
     jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
     chunk = sorted(tmp_path.glob("chunk_*.npz"))[1]
     chunk.write_bytes(chunk.read_bytes()[:100])
-    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    with pytest.warns(RuntimeWarning, match=rf"{chunk.name} is damaged"):
+        again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
     for k in ("outcome", "impacts", "status", "max_rotation"):
         np.testing.assert_array_equal(getattr(again, k), getattr(linear_map, k))
     assert chunk.stat().st_size > 100  # written again, whole
@@ -84,7 +89,8 @@ def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
 def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
     """The store keeps the order in which its first run dealt the cells to the
     chunks; a rerun, whatever its own pilots' order (other hardware), computes
-    the missing chunks of that order, and chunks of two orders are refused."""
+    the missing chunks of that order, and a stored chunk of another order is
+    damaged: computed again."""
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
     jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
     order = np.load(tmp_path / "order.npz")["order"]
@@ -94,15 +100,130 @@ def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
     store.write("order", {"order": order[::-1].copy()})  # as if dealt in reverse
     for chunk in sorted(tmp_path.glob("chunk_*.npz"))[1:]:
         chunk.unlink()
-    with pytest.raises(RuntimeError, match="every cell exactly once"):
-        jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
-    (tmp_path / "chunk_000000.npz").unlink()
-    again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
+    with pytest.warns(RuntimeWarning, match=r"chunk_000000\.npz is damaged"):
+        again = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=4, store=tmp_path)
     for k in range(4):
         chunk = np.load(tmp_path / f"chunk_{k:06d}.npz")
         np.testing.assert_array_equal(chunk["index"], order[::-1][k::4])
     np.testing.assert_array_equal(again.outcome, linear_map.outcome)
     np.testing.assert_allclose(again.max_rotation, linear_map.max_rotation, rtol=1e-9)
+
+
+BASE = jr.LinearIsolator(2.0, 0.35, 0.5)
+
+
+def _stored_map(store, motion=PULSE):
+    return jr.behavior_map(LAM, SIZE, BASE, motion, chunk_size=4, store=store)
+
+
+@pytest.fixture
+def computed(monkeypatch):
+    """The chunks computed, as a list of "pilots" or "cells"."""
+    calls = []
+    original = _maps._compute_chunk
+
+    def counting(task, device=None):
+        calls.append("pilots" if task[-1] else "cells")
+        return original(task, device)
+
+    monkeypatch.setattr(_maps, "_compute_chunk", counting)
+    return calls
+
+
+def _assert_same(again, first):
+    for k in ("outcome", "impacts", "status", "max_rotation", "uplift_time"):
+        np.testing.assert_array_equal(getattr(again, k), getattr(first, k))
+    assert again.lane_efficiency == first.lane_efficiency
+
+
+def test_store_on_a_full_disk_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """A chunk that cannot be written whole leaves no file, and the error names
+    it; the rerun computes it."""
+    first = _stored_map(tmp_path / "first")
+    savez = np.savez
+
+    def full(file, *args, **kwargs):
+        if "chunk_000002" not in str(file):
+            return savez(file, *args, **kwargs)
+        Path(file).write_bytes(b"PK\x03\x04")  # the start of a zip file
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(np, "savez", full)
+    store = tmp_path / "store"
+    message = r"cannot write .*chunk_000002\.npz: No space left on device"
+    with pytest.raises(OSError, match=message):
+        _stored_map(store)
+    monkeypatch.undo()
+    assert [p.name for p in store.iterdir() if "tmp" in p.name] == []
+    assert not (store / "chunk_000002.npz").exists()
+    _assert_same(_stored_map(store), first)
+
+
+def test_store_rebuilds_a_truncated_manifest(tmp_path, computed):
+    """Each chunk carries its map's digest: a damaged manifest is written
+    again from the map's inputs, and the store resumes as it was."""
+    first = _stored_map(tmp_path)
+    manifest = tmp_path / "manifest.json"
+    key = manifest.read_text()
+    manifest.write_text(key[: len(key) // 2])
+    computed.clear()
+    damaged = r"manifest\.json is damaged.*written again"
+    with pytest.warns(RuntimeWarning, match=damaged):
+        again = _stored_map(tmp_path)
+    assert computed == []  # every chunk and the pilots' counts read back
+    assert manifest.read_text() == key
+    _assert_same(again, first)
+    # Damaged, the manifest of another map's store: its chunks are refused.
+    manifest.write_text(key[:10])
+    with pytest.raises(ValueError, match="another map"):
+        _stored_map(tmp_path, jr.near_fault_pulse("Northridge JFA/SN"))
+
+
+@pytest.mark.parametrize(
+    "damage", ["cells of another chunk", "a field cut short", "outcome", "counts"]
+)
+def test_store_recomputes_a_chunk_whose_arrays_disagree(damage, tmp_path, computed):
+    """A chunk that reads but whose arrays disagree (with each other, with its
+    order, with the codes) is damaged: named, and computed again."""
+    first = _stored_map(tmp_path)
+    path = tmp_path / "chunk_000001.npz"
+    with np.load(path) as f:
+        arrays = dict(f)
+    if damage == "cells of another chunk":
+        arrays["index"] = np.load(tmp_path / "chunk_000000.npz")["index"]
+    elif damage == "a field cut short":
+        arrays["max_rotation"] = arrays["max_rotation"][:-1]
+    elif damage == "outcome":
+        arrays["outcome"] = arrays["outcome"] + 7
+    else:
+        arrays["useful"] = arrays["executed"] + 1
+    np.savez(path, **arrays)  # with the key of the map
+    computed.clear()
+    with pytest.warns(RuntimeWarning, match=r"chunk_000001\.npz is damaged"):
+        again = _stored_map(tmp_path)
+    assert computed.count("cells") == 1
+    _assert_same(again, first)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "counts"])
+def test_store_reruns_the_pilots_of_damaged_counts(damage, tmp_path, computed):
+    """Read back whole from a store whose pilots' counts are damaged, a map
+    runs its pilots again: the same lane_efficiency, and no cell recomputed."""
+    first = _stored_map(tmp_path)
+    pilots = tmp_path / "pilots.npz"
+    if damage == "truncated":
+        pilots.write_bytes(pilots.read_bytes()[:60])
+    else:
+        with np.load(pilots) as f:
+            np.savez(pilots, **(dict(f) | {"useful": np.array(-1)}))
+    computed.clear()
+    with pytest.warns(RuntimeWarning, match=r"pilots\.npz is damaged"):
+        again = _stored_map(tmp_path)
+    assert set(computed) == {"pilots"}
+    _assert_same(again, first)
+    computed.clear()
+    _assert_same(_stored_map(tmp_path), first)  # counts written again
+    assert computed == []
 
 
 def _saved_map(tmp_path, meta=None, **changes):

@@ -1,0 +1,86 @@
+"""Files written whole or not at all.
+
+Every file jaxrock writes (a map, a figure of the command line, a chunk of a
+store) is written to a temporary name beside its path and renamed over it
+once complete: a full disk or an interruption leaves the earlier file, if any,
+and no half-written one.
+"""
+
+import os
+import shutil
+import threading
+from pathlib import Path
+
+
+def temporary(path: Path, tag: str = "tmp") -> Path:
+    """A name beside `path` for this process and thread, ending in `path`'s
+    suffix (NumPy and matplotlib read the format from it)."""
+    owner = f"{os.getpid()}-{threading.get_ident()}"
+    return path.with_name(f"{path.stem}.{owner}.{tag}{path.suffix}")
+
+
+def atomic_write(path, write) -> None:
+    """`write(tmp)` writes a file, or a folder (a Zarr store), at the path
+    `tmp` beside `path`, which it then replaces.
+
+    The file is flushed to the disk before the rename, so that a write the
+    system defers fails here, not later. A link at `path` keeps pointing to
+    the file it names, which is replaced.
+
+    Raises:
+        OSError: writing or renaming failed (a full disk, no permission),
+            naming `path`; the temporary file is removed and a file already at
+            `path` is left as it was. Anything else `write` raises, after the
+            temporary file is removed.
+    """
+    target = Path(os.path.realpath(path))
+    tmp = temporary(target)
+    try:
+        write(tmp)
+        if tmp.is_file():
+            _sync(tmp)
+        _replace(tmp, target)
+    except BaseException as err:
+        _remove(tmp)
+        if isinstance(err, OSError):
+            reason = err.strerror or str(err)
+            if err.errno is None:
+                raise OSError(f"cannot write {path}: {reason}") from err
+            raise OSError(err.errno, f"cannot write {path}: {reason}") from err
+        raise
+
+
+def _sync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _replace(tmp: Path, target: Path) -> None:
+    """Rename `tmp` to `target`; a folder over a folder (which rename cannot
+    replace when it holds files) moves the old one aside first, and back if
+    the rename fails."""
+    if not (tmp.is_dir() and target.is_dir()):
+        os.replace(tmp, target)
+        return
+    old = temporary(target, "old")
+    os.replace(target, old)
+    try:
+        os.replace(tmp, target)
+    except BaseException:
+        os.replace(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _remove(path: Path) -> None:
+    """Remove what a failed write left at `path`, if anything."""
+    try:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+    except OSError:
+        pass  # the write's own error is the one to report
