@@ -1,17 +1,28 @@
 """JAX's persistent compilation cache, on by default in a per-user folder,
 so that a second run of a map or an analysis reuses the compiled programs of
 the first; and in its `programs/` folder the compiled chunk loops of maps,
-whole, so that a second run of a map skips tracing and lowering as well."""
+whole, so that a second run of a map skips tracing and lowering as well.
+
+jaxlib serializes a whole compiled program as a pickle, and unpickling can
+run any code: each kept file carries an HMAC of its contents under a key only
+the user can read (`key_file`), checked before anything in the file is read.
+JAX's own entries beside them are compiled machine code that JAX loads as it
+finds them: a cache folder trusts whoever can write to it."""
 
 import functools
 import hashlib
+import hmac
 import importlib.metadata
 import io
 import json
 import os
 import pickle
 import platform
+import secrets
+import tempfile
 import threading
+import time
+import warnings
 import zlib
 from collections.abc import Callable
 from pathlib import Path
@@ -61,7 +72,154 @@ def enable_compilation_cache() -> str | None:
     # Programs that compile in less than this are not worth a file.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     _FOLDER = str(folder)
+    remove_damaged_entries(folder)
     return _FOLDER
+
+
+# Entries younger than this (s) may still be being written by another
+# process: a later run checks them.
+_SETTLING_S = 5.0
+
+
+def remove_damaged_entries(folder: Path) -> None:
+    """Deletes the entries of JAX's cache in `folder` that JAX cannot read:
+    cut short by a full disk or a killed process (JAX writes an entry in
+    place, and one it cannot read it compiles again in every run, never
+    replacing it). Each entry is read once, by the first run after it is
+    written: the check's time is that of a file `jaxrock-checked-FORMAT` in
+    the folder (none that this user can write: no check). Entries of another
+    compression than this JAX's are left alone. An entry that cannot be
+    deleted (another user's) is named in a warning, in every run, until it
+    is."""
+    try:
+        from jax._src.compilation_cache import (
+            compress_executable,
+            decompress_executable,
+        )
+    except ImportError:  # another JAX: its entries are left as they are
+        return
+    magic = compress_executable(b"")[:2]
+    stamp = folder / f"jaxrock-checked-{magic.hex()}"
+    try:
+        since = stamp.stat().st_mtime
+    except FileNotFoundError:
+        since = 0.0
+    except OSError:
+        return
+    until = time.time() - _SETTLING_S
+    try:
+        stamp.touch()
+    except OSError:  # a folder this user cannot write: no check
+        return
+    try:
+        with os.scandir(folder) as found:
+            entries = [
+                e
+                for e in found
+                if e.name.endswith("-cache") and e.is_file(follow_symlinks=False)
+            ]
+    except OSError:
+        return
+    damaged = []
+    for entry in entries:
+        try:
+            written = entry.stat(follow_symlinks=False).st_mtime
+            if not since <= written < until:
+                continue
+            data = Path(entry.path).read_bytes()
+        except OSError:  # gone, or not this user's to read
+            continue
+        if len(data) < len(magic):
+            damaged.append((written, Path(entry.path)))
+        elif data.startswith(magic):
+            try:
+                decompress_executable(data)
+            except Exception:  # what JAX's read would raise
+                damaged.append((written, Path(entry.path)))
+    for written, path in damaged:
+        try:
+            path.unlink(missing_ok=True)  # or another process did
+            path.with_name(path.name.removesuffix("-cache") + "-atime").unlink(
+                missing_ok=True
+            )
+        except OSError:
+            warnings.warn(
+                f"jaxrock: {path} is a damaged entry of JAX's compilation cache "
+                "(cut short, as on a full disk), which JAX compiles again in "
+                "every run; delete it"
+            )
+            until = min(until, written)
+    try:
+        os.utime(stamp, (until, until))
+    except OSError:
+        pass
+
+
+def key_file() -> Path:
+    """`$XDG_CONFIG_HOME/jaxrock/cache-key`, else
+    `~/.config/jaxrock/cache-key`: the key that authenticates kept programs,
+    in the user's own folder, never in the cache folder (which others may
+    share)."""
+    base = os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config"
+    return Path(base) / "jaxrock" / "cache-key"
+
+
+_KEY_BYTES = 32
+
+
+@functools.cache
+def _secret() -> bytes | None:
+    """The user's key for kept programs (`key_file`): 32 random bytes,
+    readable by the user alone, made on first use. None (no program is kept)
+    where it cannot be made or read, or is not the user's alone (a warning
+    names the file)."""
+    path = key_file()
+    try:
+        return _read_secret(path)
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return None
+    partial = None
+    try:
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        fd, partial = tempfile.mkstemp(dir=path.parent, prefix=".cache-key.")
+        with os.fdopen(fd, "wb") as file:  # mkstemp: mode 0600
+            file.write(secrets.token_bytes(_KEY_BYTES))
+        try:
+            os.link(partial, path)  # a whole key, never over another process's
+        except FileExistsError:
+            pass
+        return _read_secret(path)
+    except OSError:  # a read-only home...: programs are not kept
+        return None
+    finally:
+        if partial is not None:
+            Path(partial).unlink(missing_ok=True)
+
+
+def _read_secret(path: Path) -> bytes | None:
+    """The key in `path`; None, with a warning, if others may read or write
+    it or it is not a key."""
+    with open(path, "rb") as file:
+        info = os.fstat(file.fileno())
+        secret = file.read(_KEY_BYTES + 1)
+    if os.name == "posix" and (info.st_uid != os.getuid() or info.st_mode & 0o077):
+        problem = "can be read or written by others"
+    elif len(secret) != _KEY_BYTES:
+        problem = f"is not a key of {_KEY_BYTES} bytes"
+    else:
+        return secret
+    warnings.warn(
+        f"jaxrock: {path} {problem}: compiled map loops are not kept or read; "
+        "delete it (jaxrock makes a new one)",
+        stacklevel=3,
+    )
+    return None
+
+
+def _mac(secret: bytes, data: bytes) -> str:
+    return hmac.new(secret, data, hashlib.sha256).hexdigest()
 
 
 def program_folder() -> Path | None:
@@ -168,31 +326,38 @@ def _machine() -> list[str]:
 
 def compiled(name: str, key: str | None, lower: Callable[[], jax.stages.Lowered]):
     """The program `lower()` gives, compiled (`jax.stages.Compiled`), kept
-    in `program_folder()` and read back by later processes.
+    in `program_folder()` and read back by later processes of the same user.
 
     Its file, `NAME-DIGEST.jaxprogram`, is keyed by `key` (what the program
     depends on besides code: its static structure, shapes, ...), by
     `code_version()`, by the settings that change what tracing makes
     (float64, matmul precision, Equinox's error mode) and by the machine
-    (`_machine`). A kept program is loaded instead of calling `lower` and
-    compiling; a file that is damaged or holds another key is replaced.
-    Without a folder or a key (None: not to be kept), `lower().compile()`."""
+    (`_machine`). It holds an HMAC under the user's key (`_secret`), the key
+    and the pickled executable; the HMAC is checked before anything else is
+    read, so a file that anyone without the key wrote is never unpickled. A
+    kept program is loaded instead of calling `lower` and compiling; a file
+    that is damaged, forged or holds another key is compiled anew. Without a
+    folder, a key (None: not to be kept) or the user's key,
+    `lower().compile()`."""
     folder = program_folder()
-    if folder is None or key is None:
+    secret = None if folder is None or key is None else _secret()
+    if secret is None:
         return lower().compile()
     settings = [
         jax.config.jax_enable_x64,
         str(jax.config.jax_default_matmul_precision),
         os.environ.get("EQX_ON_ERROR", ""),
     ]
-    key = json.dumps([code_version(), settings, _machine(), key])
-    path = folder / f"{name}-{_digest(key.encode())[:32]}.jaxprogram"
+    head = json.dumps([code_version(), settings, _machine(), key]).encode()
+    path = folder / f"{name}-{_mac(secret, head)[:32]}.jaxprogram"
     try:
-        head, payload = path.read_bytes().split(b"\n", 1)
-        if json.loads(head) == {"key": key, "sha256": _digest(payload)}:
-            saved = pickle.loads(zlib.decompress(payload))
-            return serialize_executable.deserialize_and_load(*saved)
-    except Exception:  # missing or damaged: compile again
+        mac, content = path.read_bytes().split(b"\n", 1)
+        if hmac.compare_digest(mac, _mac(secret, content).encode()):
+            kept, payload = content.split(b"\n", 1)
+            if kept == head:
+                saved = pickle.loads(zlib.decompress(payload))
+                return serialize_executable.deserialize_and_load(*saved)
+    except Exception:  # missing, damaged or forged: compile again
         pass
     hits = _cache_hits()
     program = lower().compile()
@@ -200,14 +365,21 @@ def compiled(name: str, key: str | None, lower: Callable[[], jax.stages.Lowered]
         # Loaded from JAX's cache: jaxlib serializes such code without its
         # kernels (it fails when run), so only a program compiled here is kept.
         return program
-    partial = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}")
+    partial = None
     try:
         saved = serialize_executable.serialize(program)
-        payload = zlib.compress(pickle.dumps(saved), 1)
-        head = json.dumps({"key": key, "sha256": _digest(payload)})
+        content = head + b"\n" + zlib.compress(pickle.dumps(saved), 1)
         folder.mkdir(parents=True, exist_ok=True)
-        partial.write_bytes(head.encode() + b"\n" + payload)
+        # A new file of its own (mode 0600): no name another user could
+        # have laid a link at.
+        fd, partial = tempfile.mkstemp(dir=folder, prefix=f"{path.name}.")
+        with os.fdopen(fd, "wb") as file:
+            file.write(_mac(secret, content).encode() + b"\n" + content)
         os.replace(partial, path)  # whole files only, also between processes
+        partial = None
     except Exception:  # a read-only folder...: the program is used, not kept
-        partial.unlink(missing_ok=True)
+        pass
+    finally:
+        if partial is not None:
+            Path(partial).unlink(missing_ok=True)
     return program
