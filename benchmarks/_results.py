@@ -17,11 +17,13 @@ def markdown_table(rows, columns: list[tuple[str, str]]) -> list[str]:
     return lines
 
 
-def write_results(name: str, rows, md: str | list[str]) -> None:
+def write_results(name: str, rows, md: str | list[str], folder=None) -> None:
     """Print `md` (a table, or its lines) and write `NAME.md` and `NAME.json`
-    (`rows`, any JSON-serializable value) to the results folder."""
+    (`rows`, any JSON-serializable value) to `folder` (default: the results
+    folder)."""
     text = md if isinstance(md, str) else "\n".join(md)
     print(text)
-    FOLDER.mkdir(parents=True, exist_ok=True)
-    (FOLDER / f"{name}.json").write_text(json.dumps(rows, indent=2))
-    (FOLDER / f"{name}.md").write_text(text + "\n")
+    folder = FOLDER if folder is None else Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.json").write_text(json.dumps(rows, indent=2))
+    (folder / f"{name}.md").write_text(text + "\n")

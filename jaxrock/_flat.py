@@ -689,7 +689,7 @@ def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts)
     return jax.vmap(_look_ahead)(sub, located, new)
 
 
-def flat_step(c, block, base, motion, duration, opts, in_axes):
+def flat_step(c, block, base, motion, duration, opts, in_axes, one_batch=False):
     """One step attempt of every lane (leading axis); returns the new carries
     and the attempts (`_Attempt`, before their events were located).
 
@@ -698,7 +698,10 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     (`_moved`, elementwise). The others (an event, a segment's end, a
     failure, a search for a jump) are gathered in batches (`_batch_size`), in
     which the root find and `transition` run (`_end_lanes`; in most
-    iterations a few lanes: one batch, and none without).
+    iterations a few lanes: one batch, and none without). With `one_batch`
+    (on a GPU: each pass of a loop costs a round trip to the host, and
+    thousands of lanes end in every step) the batch is every lane, each one
+    kept or replaced as it ends or not.
     """
     lanes = c.t.shape[0]
     a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
@@ -711,6 +714,13 @@ def flat_step(c, block, base, motion, duration, opts, in_axes):
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
+    if one_batch:
+        ended = jax.lax.cond(
+            jnp.any(ends),
+            lambda: _end_lanes(c, lanes_a, ends, motion, motion_axes, duration, opts),
+            lambda: new,
+        )
+        return where_lanes(ends, ended, new), a
     batch = _batch_size(lanes, base)
     # The lanes that end, in order: the k-th is the first lane whose count of
     # ending lanes up to it is k + 1 (`lanes`, none, past the last).

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _cache
+from . import _cache, _layout
 from ._block import Block
 from ._dynamics import Phase
 from ._executor import check_executor, run_tasks
@@ -27,7 +27,6 @@ from ._misc import (
     as_float,
     broadcast_batch_shape,
     grid_axis,
-    is_count,
     positive,
     where_lanes,
 )
@@ -49,6 +48,7 @@ from ._results import (
     Status,
 )
 from ._store import ChunkStore
+from ._xla import compiler_accepts
 
 # The name scope of the loop that steps a chunk's lanes (`_Chunk.steps`): on
 # the CPU, XLA compiles it as one kernel (see `_xla.py`).
@@ -94,10 +94,10 @@ def _map_chunk(
     opts,
     count,
     pilot,
-    width,
+    loop: _layout.Loop,
 ):
-    """Analyse the first `count` cells of a chunk on `width` lanes that refill
-    from a queue.
+    """Analyse the first `count` cells of a chunk on `loop.lanes` lanes that
+    refill from a queue.
 
     `slenderness`, `size`, every leaf of `base` and of `shared` carry one
     leading cell axis; so do those of `motion`, unless it is one motion for all
@@ -143,8 +143,9 @@ def _map_chunk(
         duration,
         opts,
         pilot,
+        loop.one_event_batch,
     )
-    n, width = chunk.n, min(width, chunk.n)
+    n, width = chunk.n, min(loop.lanes, chunk.n)
     # Every lane starts idle and finished: the loop's first `refill` gives
     # them the first cells.
     idle = jnp.full(width, n)
@@ -180,7 +181,7 @@ def _zeros_of(f, *args):
 
 class _Chunk(eqx.Module):
     """A chunk's cells and what its lanes share (the arguments of `_map_chunk`
-    but `count` and the lane width), and the steps of its loop.
+    but `count` and the loop's lanes), and the steps of its loop.
 
     The motion is one of three: per cell (its parameters carry the cell axis),
     one record for every cell (`shared_by_cells`), or a suite of records with
@@ -198,6 +199,7 @@ class _Chunk(eqx.Module):
     duration: jax.Array
     opts: SolverOptions
     pilot: jax.Array
+    one_event_batch: bool = eqx.field(static=True)
 
     @property
     def n(self) -> int:
@@ -272,7 +274,14 @@ class _Chunk(eqx.Module):
 
         def body(s: _Lanes) -> _Lanes:
             new, a = flat_step(
-                s.carry, block, lane_base, lane_motion, self.duration, opts, self.axes
+                s.carry,
+                block,
+                lane_base,
+                lane_motion,
+                self.duration,
+                opts,
+                self.axes,
+                self.one_event_batch,
             )
             taken = new.steps - s.carry.steps
             ended = new.done | (new.segments >= opts.max_segments)
@@ -770,35 +779,6 @@ def _cells_of(module, shape, index):
     )
 
 
-# Lanes of one compiled loop, under a pulse or a record. Measured on a 2-core
-# CPU with the loop as one kernel, under the Pacoima Dam record: 128 lanes
-# take 1.14x (linear isolator, friction pendulum) and 0.98x (fixed base) the
-# time of 64, 32 lanes 0.99x, 1.03x and 1.2x; under a pulse 128 lanes gain
-# nothing.
-LANE_WIDTH = 64
-
-
-# Cells a chunk holds by default when chunks are units of work for a store or
-# an executor (`_chunk_size`), and at most otherwise.
-CHUNK_SIZE = 610
-MAX_CHUNK_SIZE = 8192
-
-
-def _chunk_size(chunk_size, units: bool) -> int | str | None:
-    """`chunk_size` as an int >= 1, None (all at once) or "auto"; "auto" is
-    `CHUNK_SIZE` when chunks are `units` of work (for a store or an executor),
-    else left to `_chunk_plan` (`ValueError` for anything else)."""
-    if isinstance(chunk_size, str) and chunk_size == "auto":
-        return CHUNK_SIZE if units else chunk_size
-    if chunk_size is None:
-        return None
-    if not is_count(chunk_size) or chunk_size < 1:
-        raise ValueError(
-            f"`chunk_size` must be an integer >= 1, None or 'auto', got {chunk_size!r}"
-        )
-    return int(chunk_size)
-
-
 # Memory a map holds per cell on the host: inputs, indices, results and the
 # chunks' carries (measured: about 0.5 kB a cell at 2,440 to 100,000 cells).
 _BYTES_PER_CELL = 1024
@@ -916,7 +896,7 @@ def _numpy(tree):
 
 
 def _device_args(task, device) -> tuple:
-    """The arguments of `_map_chunk` but the lane width, from a task
+    """The arguments of `_map_chunk` but its loop, from a task
     (`_ChunkRunner.task`), on `device`."""
     *head, opts, count, pilot = task
     opts = jax.tree_util.tree_map(
@@ -932,16 +912,17 @@ def _device_args(task, device) -> tuple:
 def _compute_chunk(task, device=None) -> dict:
     """One chunk of a map: the task `behavior_map` gives an executor.
 
-    `task` holds the NumPy arguments of `_map_chunk` but the lane width
+    `task` holds the NumPy arguments of `_map_chunk` but its loop
     (`_ChunkRunner.task`); they go to `device` (default: the first local
     device). Returns NumPy arrays: for a chunk of cells its `_FIELDS`, for a
     chunk of pilots the leaves of their carries ("carries", a list), each for
     the chunk's cells only (not its padding); and the lane-steps executed and
     those that advanced an analysis ("executed", "useful").
     """
-    args = _device_args(task, device or jax.local_devices()[0])
+    device = device or jax.local_devices()[0]
+    args = _device_args(task, device)
     leaves, treedef = jax.tree_util.tree_flatten(args)
-    program = _chunk_program(treedef, leaves)
+    program = _chunk_program(treedef, leaves, _layout.loop_for(device.platform))
     fields, carries, executed, useful = jax.device_get(program(*leaves))
     count, pilot = int(task[-2]), bool(task[-1])
     if pilot:
@@ -961,10 +942,10 @@ _PROGRAMS_LOCK = threading.Lock()
 _TRACING = threading.Lock()
 
 
-def _chunk_program(treedef, leaves):
+def _chunk_program(treedef, leaves, loop: _layout.Loop):
     """`_map_chunk` for arguments of the structure `treedef` (static fields
-    included) and the shapes and device of `leaves` (jax Arrays), on
-    `LANE_WIDTH` lanes, compiled: a function of the leaves that returns the
+    included) and the shapes and device of `leaves` (jax Arrays), as `loop`,
+    compiled: a function of the leaves that returns the
     responses' `_FIELDS`, the carries' leaves, and the lane-steps executed and
     useful.
 
@@ -977,25 +958,24 @@ def _chunk_program(treedef, leaves):
     specs = tuple(
         jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=x.sharding) for x in leaves
     )
-    key = (treedef, specs)
+    key = (treedef, specs, loop)
     with _PROGRAMS_LOCK:
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
     with lock:
         if key not in _PROGRAMS:
-            _PROGRAMS[key] = _make_program(treedef, specs)
+            _PROGRAMS[key] = _make_program(treedef, specs, loop)
         return _PROGRAMS[key]
 
 
-def _make_program(treedef, specs):
+def _make_program(treedef, specs, loop: _layout.Loop):
     """`_chunk_program`'s function, compiled here or loaded from the folder."""
 
     args = jax.tree_util.tree_unflatten(treedef, specs)
     options = _compiler_options(base=args[2], motion=args[3])
-    width = LANE_WIDTH
 
     def map_chunk(*leaves):
         args = jax.tree_util.tree_unflatten(treedef, leaves)
-        responses, carries, executed, useful = _map_chunk(*args, width)
+        responses, carries, executed, useful = _map_chunk(*args, loop)
         fields = tuple(getattr(responses, f) for f in _FIELDS)
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
@@ -1007,7 +987,7 @@ def _make_program(treedef, specs):
 
     static = _cache.static_key(treedef)
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = json.dumps([static, shapes, width, options])
+    key = json.dumps([static, shapes, list(loop), options])
     if static is None or len(jax.local_devices()) > 1:
         key = None  # not kept
     return _cache.compiled("map_chunk", key, lower)
@@ -1022,12 +1002,14 @@ def _compiler_options(base: AbstractIsolator, motion: AbstractGroundMotion) -> d
     4.5 against 3.5 s; linear isolator, 4.0 against 3.2 s) and runs as fast
     (the fixed base's loop within 13%). Records' reads of their samples and a
     friction pendulum's z run 1.3-1.6x faster with the fusion emitters.
+    (XLA releases without that option, jaxlib 0.11 on, keep their default.)
     """
     if jax.default_backend() != "cpu":
         return {}
     if motion.sample_count > 0 or base.hysteretic_state:
         return {}
-    return {"xla_cpu_use_fusion_emitters": False}
+    options = {"xla_cpu_use_fusion_emitters": False}
+    return options if compiler_accepts(options) else {}
 
 
 class _ChunkRunner:
@@ -1048,9 +1030,14 @@ class _ChunkRunner:
         )
         self.one_base = _numpy(grid.base) if grid.base_shape == () else None
         self.devices = jax.local_devices()
+        # A thread per CPU core, or per accelerator (each runs its chunks in turn).
+        cpu = self.devices[0].platform == "cpu"
+        self.threads = len(self.devices)
+        if cpu:
+            self.threads = max(self.threads, os.cpu_count() or 1)
 
     def task(self, index, inputs, shared, pilot) -> tuple:
-        """The arguments of `_map_chunk` but the lane width, as NumPy, for the
+        """The arguments of `_map_chunk` but its loop, as NumPy, for the
         cells `index` of `inputs` and `shared`: a task of `_compute_chunk`."""
         count = index.size
         take = np.pad(index, (0, self.padded - count), mode="edge")
@@ -1104,41 +1091,12 @@ class _ChunkRunner:
             return out
 
         out = {}
-        with ThreadPoolExecutor(max(len(self.devices), os.cpu_count() or 1)) as pool:
+        with ThreadPoolExecutor(self.threads) as pool:
             for k, result in zip(jobs, pool.map(compute, jobs)):
                 out[k] = result
                 if bar is not None:
                     bar.update(1)
         return out
-
-
-def _chunk_plan(n: int, chunk_size, width: int) -> tuple[int, int, int]:
-    """(cells a chunk, its padded size, chunks) of a map of n cells. Chunks are
-    padded to a power of two (at most `chunk_size`): maps of other sizes reuse
-    a handful of compiles. Small maps all take one chunk shape, that of a full
-    set of lanes (padding costs nothing but idle lanes; a compile costs
-    seconds). A chunk of at least a lane width is padded to a whole number of
-    lane widths: XLA's vectorized loops over its cells then leave no
-    remainder, which they would compute with other roundings, and a cell's
-    position in its chunk changes none of its bits.
-
-    `chunk_size="auto"`: as few chunks as keep the local devices or CPU cores
-    busy, a multiple of their number (none idles at the end), of at most
-    `MAX_CHUNK_SIZE` cells; a map of up to a lane width is one chunk. Few,
-    large chunks lose little to their tails: a chunk lasts as long as its
-    longest analysis, which under a suite of records is 10-15 times the
-    mean."""
-    if isinstance(chunk_size, str):  # "auto"
-        slots = max(len(jax.local_devices()), os.cpu_count() or 1)
-        chunks = 1 if n <= width else slots * -(-n // (slots * MAX_CHUNK_SIZE))
-        chunk = -(-n // chunks)
-        return chunk, max(1 << (chunk - 1).bit_length(), width), chunks
-    chunk = n if chunk_size is None else min(chunk_size, n)
-    padded = max(1 << (chunk - 1).bit_length(), width)
-    if chunk_size is not None:
-        whole = min(chunk_size, width)
-        padded = min(padded, -(-chunk_size // whole) * whole)
-    return chunk, padded, -(-n // chunk)
 
 
 def _run_pilots(runner: _ChunkRunner, grid: _Grid, chunk: int):
@@ -1190,13 +1148,15 @@ def behavior_map(
     then has shape base batch + pulse batch + (n_slenderness, n_size).
     Cells run `chunk_size` at a time (`None`: all at once; "auto", the
     default: 610 with a store or an executor, else as few chunks as keep the
-    CPU cores busy, of at most 8,192 cells each) through one
-    compiled loop on 64 vmapped lanes; each iteration advances
-    every lane by one solver step, and a lane that finishes takes the chunk's
-    next cell (the "flat loop", `_flat.py`). The pure-translation phase before
-    uplift runs once per base, motion and slenderness (see `_map_chunk`), and
-    the cells, ordered by where that leaves them, are dealt to the chunks in
-    turn (equal work per chunk). Chunks run one thread per CPU core.
+    devices busy: on a CPU a multiple of its cores, of at most 8,192 cells
+    each; on a GPU one chunk per GPU of up to 1,048,576 cells) through one
+    compiled loop on vmapped lanes (64 on a CPU, 65,536 on a GPU); each
+    iteration advances every lane by one solver step, and a lane that
+    finishes takes the chunk's next cell (the "flat loop", `_flat.py`). The
+    pure-translation phase before uplift runs once per base, motion and
+    slenderness (see `_map_chunk`), and the cells, ordered by where that
+    leaves them, are dealt to the chunks in turn (equal work per chunk).
+    Chunks run one thread per CPU core, or per GPU.
     `progress` shows a tqdm bar (default: when there is more than one chunk).
     New grids, pulses or isolator parameters reuse the compile.
 
@@ -1220,14 +1180,16 @@ def behavior_map(
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
     positive("duration", duration)
-    chunk_size = _chunk_size(chunk_size, store is not None or executor is not None)
+    chunk_size = _layout.chunk_size(
+        chunk_size, store is not None or executor is not None
+    )
     opts = SolverOptions.for_motion(
         motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     _check_fits_in_memory(int(np.prod(shape)))
     grid = _Grid(lam, r, base, motion)
-    chunk, padded, chunks = _chunk_plan(grid.n, chunk_size, LANE_WIDTH)
+    chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size)
     if progress is None:
         progress = chunks > 1
     duration = as_float(duration)

@@ -27,10 +27,12 @@ in 1.09x, and every map compiles 2-4.5x longer: for long campaigns of
 friction-pendulum maps, whose compiled loops the cache folder keeps.
 """
 
+import functools
+import json
 import os
 import warnings
 
-import jax._src.xla_bridge as xla_bridge
+import jax
 
 from ._misc import turned_off
 
@@ -56,7 +58,7 @@ def compile_loops_whole() -> bool:
     setting = os.environ.get(ENVIRONMENT, "")
     if turned_off(setting):
         return False
-    if xla_bridge.backends_are_initialized():
+    if _backends_started():
         warnings.warn(
             "jaxrock was imported after JAX started its backends, too late to "
             f"compile loops as one kernel ({OPTION}): behavior maps run 1.1-2x "
@@ -70,4 +72,32 @@ def compile_loops_whole() -> bool:
     if setting.strip().lower() == FLATTENED:
         option += f",{FLATTEN}"
     os.environ["XLA_FLAGS"] = f"{flags} {option}".strip()
+    return True
+
+
+def _backends_started() -> bool:
+    """Whether JAX has started its backends (read from a private JAX module:
+    False where a JAX release moved it, and the flags are set regardless)."""
+    try:
+        from jax._src import xla_bridge
+
+        return bool(xla_bridge.backends_are_initialized())
+    except (ImportError, AttributeError):
+        return False
+
+
+def compiler_accepts(options: dict) -> bool:
+    """Whether this JAX's XLA (on the default backend) takes the compiler
+    `options`: XLA adds and removes options between releases, and refuses a
+    program with one it does not know."""
+    return _accepts(json.dumps(options, sort_keys=True))
+
+
+@functools.cache
+def _accepts(options: str) -> bool:
+    program = jax.jit(lambda x: x + 1.0, compiler_options=json.loads(options))
+    try:
+        program.lower(1.0).compile()
+    except jax.errors.JaxRuntimeError:
+        return False
     return True

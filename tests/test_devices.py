@@ -49,3 +49,29 @@ def test_two_cpu_devices_give_the_same_map(one):
     assert two["devices"] == 2
     np.testing.assert_array_equal(np.array(two["outcome"]), one.outcome)
     np.testing.assert_allclose(np.array(two["rotation"]), one.max_rotation, rtol=1e-12)
+
+
+@pytest.fixture
+def accelerator_loop(monkeypatch):
+    """Chunks run on the CPU as they run on an accelerator (every lane's
+    events located in one batch), on the CPU's 64 lanes."""
+    monkeypatch.setattr(
+        jr._layout, "loop_for", lambda platform: jr._layout.Loop(64, True)
+    )
+
+
+def test_an_accelerators_loop_gives_the_same_map(linear_map, accelerator_loop):
+    """On a GPU the lanes that end a step have their events located together,
+    not in batches of eight: every number of the map is the same."""
+    again = jr.behavior_map(
+        linear_map.slenderness,
+        linear_map.size,
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+        jr.near_fault_pulse("San Fernando PCD/SN"),
+        chunk_size=4,
+        progress=False,
+    )
+    for k in jr._maps._FIELDS:
+        np.testing.assert_array_equal(
+            getattr(again, k), getattr(linear_map, k), err_msg=k
+        )

@@ -7,7 +7,7 @@ import pytest
 import reference as ref
 
 import jaxrock as jr
-from jaxrock import _maps, _model, _simulate
+from jaxrock import _layout, _maps, _model, _simulate
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
@@ -83,14 +83,33 @@ def test_automatic_chunks(monkeypatch):
     of their number, of at most MAX_CHUNK_SIZE cells, padded to powers of two
     of at least a lane width), and 610-cell chunks when they are units of
     work for a store or an executor."""
-    monkeypatch.setattr(_maps.os, "cpu_count", lambda: 2)
-    plan = [_maps._chunk_plan(n, "auto", 64) for n in (15, 2440, 99_856)]
-    assert plan == [(15, 64, 1), (1220, 2048, 2), (7133, _maps.MAX_CHUNK_SIZE, 14)]
-    assert _maps._chunk_plan(8232, "auto", 128) == (4116, 8192, 2)  # a suite map
-    assert _maps._chunk_size("auto", units=False) == "auto"
-    assert _maps._chunk_size("auto", units=True) == _maps.CHUNK_SIZE == 610
+    monkeypatch.setattr(_layout.os, "cpu_count", lambda: 2)
+    cpu = jax.devices("cpu")[:1]
+    plan = [_layout.chunk_plan(n, "auto", cpu) for n in (15, 2440, 99_856)]
+    assert plan == [(15, 64, 1), (1220, 2048, 2), (7133, _layout.MAX_CHUNK_SIZE, 14)]
+    assert _layout.chunk_plan(8232, "auto", cpu) == (4116, 8192, 2)  # a suite map
+    assert _layout.chunk_size("auto", units=False) == "auto"
+    assert _layout.chunk_size("auto", units=True) == _layout.CHUNK_SIZE == 610
     with pytest.raises(ValueError, match="'auto'"):
-        _maps._chunk_size("many", units=False)
+        _layout.chunk_size("many", units=False)
+
+
+def test_automatic_chunks_on_a_gpu():
+    """On an accelerator a map is one chunk per device, of up to 2**20
+    cells, on 65,536 lanes; a small map's chunk is no larger than a power of
+    two that holds it (its lanes too: idle lanes would still compute)."""
+
+    class Gpu:
+        platform = "gpu"
+
+    gpu = [Gpu()]
+    assert _layout.lane_width("gpu") == _layout.ACCELERATOR_LANE_WIDTH == 65536
+    assert _layout.lane_width("cpu") == 64
+    assert _layout.chunk_plan(2440, "auto", gpu) == (2440, 4096, 1)
+    assert _layout.chunk_plan(10**6, "auto", gpu) == (10**6, 1 << 20, 1)
+    assert _layout.chunk_plan(3 * 10**6, "auto", gpu) == (10**6, 1 << 20, 3)
+    assert _layout.chunk_plan(3 * 10**6, "auto", gpu * 2) == (750_000, 1 << 20, 4)
+    assert _layout.chunk_plan(8232, 610, gpu) == (610, 610, 14)
 
 
 def test_chunking_does_not_change_results(linear_map):
@@ -122,7 +141,7 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     monkeypatch.setattr(_maps, "_compute_chunk", counting)
     shared = jr.behavior_map(LAM, SIZE, base, PULSE, chunk_size=None, progress=False)
     assert calls == [True, False]  # the pilots, then the cells from their carries
-    lanes = _maps.LANE_WIDTH  # a map of 15 cells runs as one chunk of 64 lanes
+    lanes = _layout.CPU_LANE_WIDTH  # a map of 15 cells: one chunk of 64 lanes
 
     def pad(x):
         x = np.asarray(x)

@@ -93,3 +93,17 @@ def test_too_late_once_jax_has_computed(fresh):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert not _xla.compile_loops_whole()
+
+
+def test_compiler_options_this_xla_does_not_take_are_left_out(monkeypatch):
+    """XLA refuses a program with an option it does not know (jaxlib 0.11 has
+    no xla_cpu_use_fusion_emitters): a pulse map's loop then compiles with
+    XLA's defaults instead of failing."""
+    assert _xla.compiler_accepts({})
+    assert not _xla.compiler_accepts({"xla_cpu_no_such_option": False})
+    pulse, base = jr.near_fault_pulse("San Fernando PCD/SN"), jr.FixedBase()
+    assert _maps._compiler_options(base, pulse) == {
+        "xla_cpu_use_fusion_emitters": False
+    }
+    monkeypatch.setattr(_maps, "compiler_accepts", lambda options: False)
+    assert _maps._compiler_options(base, pulse) == {}

@@ -1,0 +1,35 @@
+"""`benchmarks/device.py` at a tiny size on the CPU: every map runs, and the
+maps it compares with a second process's CPU maps agree to the bit."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def test_device_benchmark_runs_and_matches_the_cpu_maps(tmp_path):
+    command = [sys.executable, "device.py", "--tiny", "--repeats", "0"]
+    command += ["--compare-cpu", "--lanes", "32", "--results", str(tmp_path)]
+    subprocess.run(
+        command, cwd=BENCHMARKS, env=dict(os.environ), check=True, timeout=1200
+    )
+    results = json.loads((tmp_path / "device-cpu-tiny.json").read_text())
+    assert results["info"]["backend"] == "cpu"
+    assert results["info"]["lane_width"] == 64
+    rows = {r["map"]: r for r in results["rows"]}
+    # Pulse and record maps on three bases, a suite, two larger maps, a sweep.
+    assert len(rows) == 10
+    assert rows["64 cells, fixed, lanes"]["lanes"] == 32
+    for row in rows.values():
+        assert row["not_success"] == 0, row["map"]
+        assert 0 < row["lane_efficiency"] <= 1
+        assert row["analyses_per_s"] > 0
+    compared = [r for r in rows.values() if "cpu_outcomes_differ" in r]
+    assert len(compared) == 6
+    for row in compared:
+        assert row["cpu_outcomes_differ"] == 0, row["map"]
+        assert row["cpu_max_rotation_delta"] == 0.0, row["map"]
+    assert (tmp_path / "device-cpu-tiny.md").read_text().startswith("cpu (cpu)")
