@@ -85,3 +85,62 @@ def test_lognormal_fit_of_separated_outcomes_is_a_step(im, failed, median):
 )
 def test_lognormal_fit_of_failures_not_leaning_to_larger_im_is_nan(im, failed):
     assert np.isnan(jr.fit_lognormal(im, failed)).all()
+
+
+def _exact_fit(im, k, n):
+    """The maximum-likelihood (median, beta) by SciPy, written apart from
+    jaxrock's Newton: BFGS on (ln median, ln beta) with the analytic gradient,
+    then the score equations solved by `root` (hybr, xtol 1e-15)."""
+    from scipy.optimize import minimize, root
+    from scipy.special import log_ndtr
+
+    x = np.log(im)
+
+    def score(p):  # the gradient of the negative log-likelihood in (mu, ln b)
+        mu, b = p[0], np.exp(p[1])
+        z = (x - mu) / b
+        up = np.exp(norm.logpdf(z) - log_ndtr(z))  # phi / Phi
+        down = np.exp(norm.logpdf(z) - log_ndtr(-z))
+        dz = k * up - (n - k) * down  # d loglik / dz
+        return -np.array([np.sum(dz * -1 / b), np.sum(dz * -z)])
+
+    def nll(p):
+        z = (x - p[0]) / np.exp(p[1])
+        return -np.sum(k * log_ndtr(z) + (n - k) * log_ndtr(-z))
+
+    start = np.array([x.mean(), np.log(x.std())])
+    p = minimize(nll, start, jac=score, method="BFGS", options={"gtol": 1e-12}).x
+    p = root(score, p, method="hybr", tol=1e-15).x
+    assert np.abs(score(p)).max() < 1e-9
+    return np.exp(p[0]), np.exp(p[1])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_lognormal_fit_is_the_exact_maximum_likelihood(seed):
+    rng = np.random.default_rng(seed)
+    size = [12, 40, 200, 1000, 25, 300][seed]
+    median, beta = np.exp(rng.normal(0.0, 1.0)), rng.uniform(0.15, 1.2)
+    im = np.exp(rng.normal(np.log(median), 1.5 * beta, size))
+    failed = rng.random(size) < norm.cdf(np.log(im / median) / beta)
+    got = jr.fit_lognormal(im, failed)
+    want = _exact_fit(im, failed.astype(float), np.ones(size))
+    np.testing.assert_allclose(got, want, rtol=1e-8)
+    # The binomial form of a multiple-stripe analysis: k of n at each level.
+    levels = np.geomspace(0.2, 3.0, 8) * median
+    n = rng.integers(1, 40, levels.size)
+    k = rng.binomial(n, norm.cdf(np.log(levels / median) / beta))
+    if 0 < k.sum() < n.sum() and (k[:-1] > 0).any():
+        got = jr.fit_lognormal(levels, k, trials=n)
+        if got[1] > 0:
+            np.testing.assert_allclose(got, _exact_fit(levels, k, n), rtol=1e-8)
+    # Binary outcomes are the binomial form with one trial a level.
+    np.testing.assert_array_equal(
+        jr.fit_lognormal(im, failed.astype(int), trials=1), jr.fit_lognormal(im, failed)
+    )
+
+
+def test_lognormal_fit_refuses_bad_counts():
+    with pytest.raises(ValueError, match="`trials` must be whole numbers >= 1"):
+        jr.fit_lognormal([1.0, 2.0], [0, 1], trials=0)
+    with pytest.raises(ValueError, match="`failed` must count the failures"):
+        jr.fit_lognormal([1.0, 2.0], [0, 3], trials=2)
