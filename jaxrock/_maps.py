@@ -27,6 +27,7 @@ from ._misc import (
     as_float,
     broadcast_batch_shape,
     grid_axis,
+    one_real_number,
     positive,
     where_lanes,
 )
@@ -424,12 +425,15 @@ class BehaviorMap(eqx.Module):
         else:
             on_records = c.dims[0].startswith("record")
         one = on_records and names is not None and len(names) == self.outcome.shape[0]
+        member = f" [{_member_label(c, index) or index}]"
+        on_bases = c.dims[0].startswith("base")
+        motion = names[index] if one else self.motion + ("" if on_bases else member)
         return BehaviorMap(
             slenderness=self.slenderness,
             size=self.size,
             **fields,
-            base=self.base,
-            motion=names[index] if one else f"{self.motion} [{index}]",
+            base=self.base + (member if on_bases else ""),
+            motion=motion,
             seconds=self.seconds,
             lane_efficiency=self.lane_efficiency,
             motion_names=None if on_records else names,
@@ -762,6 +766,18 @@ def _check_counts(arrays: dict) -> None:
     numbers = all(x.shape == () and x.dtype.kind in "iu" for x in (useful, executed))
     if not (numbers and 0 <= useful <= executed):
         raise ValueError(f"lane-step counts useful {useful}, executed {executed}")
+
+
+def _member_label(c: Coordinates, index: int) -> str:
+    """The parameters that vary along the leading axis of `c`, at `index`
+    ("amplitude = 2 m/s"); "" if none is labelled."""
+    parts = []
+    for name, (dims, values, attrs) in c.coords.items():
+        if len(dims) == 1 and dims[0] == c.dims[0] and name != "record":
+            units = attrs.get("units", "")
+            value = f"{np.asarray(values)[index]:g} {'' if units == '1' else units}"
+            parts.append(f"{name} = {value.strip()}")
+    return ", ".join(parts)
 
 
 def _leaf_digest(module) -> str:
@@ -1179,6 +1195,7 @@ def behavior_map(
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
     if duration is None:
         duration = float(np.max(np.asarray(motion.end_time))) + 5.0
+    duration = one_real_number("duration", duration, "finite and > 0 (s)")
     positive("duration", duration)
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None

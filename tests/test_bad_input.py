@@ -315,6 +315,19 @@ def test_duration_that_is_not_one_number_is_named(duration, message):
         jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), PULSE, duration=duration)
 
 
+def test_a_maps_duration_that_is_not_one_number_is_named():
+    with pytest.raises(ValueError, match="`duration` must be one number"):
+        jr.behavior_map([4.0], [1.0], jr.FixedBase(), PULSE, duration=[10.0])
+
+
+def test_a_member_of_a_batch_is_labelled_by_its_parameters():
+    """`select` names the pulse (or isolator) it picks, not the whole batch."""
+    pulses = jr.MPPulse(np.array([1.0, 2.0]), 1.0, 2.0, 0.0)
+    bm = jr.behavior_map([3.0], [1.0], jr.FixedBase(), pulses, progress=False)
+    assert bm.select(1).motion == f"{bm.motion} [amplitude = 2 m/s]"
+    assert bm.select(1).base == bm.base
+
+
 def test_history_step_that_is_not_one_number_is_named():
     with pytest.raises(ValueError, match="`history_step` must be one number"):
         jr.simulate(

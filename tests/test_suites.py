@@ -129,10 +129,11 @@ def test_a_suite_map_over_bases_as_labeled_arrays(records, tmp_path):
                 np.testing.assert_array_equal(cell[f], getattr(bm, f)[b, i])
     # A base of the ensemble is a suite map; a record of that, one record's.
     by_base = bm.select(1)
-    assert by_base.motion_names == bm.motion_names and "[1]" in by_base.motion
+    assert by_base.motion_names == bm.motion_names and by_base.motion == bm.motion
+    assert by_base.base == f"{bm.base} [period = 2 s]"
     assert by_base.select(0).motion == names[0]
     xr.testing.assert_identical(
-        by_base.to_xarray(), ds.sel(period=2.0).assign_attrs(motion=by_base.motion)
+        by_base.to_xarray(), ds.sel(period=2.0).assign_attrs(base=by_base.base)
     )
     for suffix in (".nc", ".zarr"):
         bm.save(tmp_path / f"suite{suffix}")
