@@ -314,7 +314,7 @@ def _next_uplift_fixed(t, t_window, thr, mkind, mp, samples):
             k -= 1
         while k < n and abs(samples[k]) < thr:
             k += 1
-        if k == n or k * dt > t_window:
+        if k >= n or k * dt > t_window:
             return t_window, 0
         lo = max((k - 1) * dt, t)
         a_lo = _ground(lo, mkind, mp, samples)
@@ -628,8 +628,18 @@ def analysis(
             overturned = True
             max_th = math.pi / 2
             break
-        elif phase == RISING:
+        elif phase == RISING and s * y[0] > 0:
             phase = FALLING
+        elif phase == RISING:
+            # An apex at or below theta = 0: a rebound too small to lift the
+            # block at all; it rests.
+            y[0] = y[1] = 0.0
+            phase = TRANSLATION
+            a = _ground(t, mkind, mp, samples) if fixed else -_force(y, bkind, bp)
+            if a <= -thr:
+                phase, s = RISING, 1
+            elif a >= thr:
+                phase, s = RISING, -1
         elif first == 1:
             phase = RISING
         else:
