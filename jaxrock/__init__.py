@@ -52,6 +52,7 @@ from ._ground import (
 from ._ground import (
     near_fault_pulse as near_fault_pulse,
 )
+from ._intensity import intensity_measure as intensity_measure  # noqa: E402
 from ._isolators import (
     AbstractBoucWenIsolator as AbstractBoucWenIsolator,
 )

@@ -9,41 +9,13 @@ from jax.scipy.special import log_ndtr
 from jax.scipy.stats import norm
 
 from ._ground import AbstractGroundMotion
+from ._intensity import intensity_measure, measure_attrs, parse_measure
 from ._isolators import AbstractIsolator
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import GRAVITY, grid_axis, positive, unbatched
+from ._misc import grid_axis, positive, unbatched
 from ._model import check_base_and_motion
-from ._record import Record
 from ._results import Outcome, Status
-
-MEASURES = ("pga", "pgv", "pga_ratio")
-# Each measure's meaning and unit.
-_IM_ATTRS = {
-    "pga": {"long_name": "peak ground acceleration", "units": "m/s^2"},
-    "pgv": {"long_name": "peak ground velocity", "units": "m/s"},
-    "pga_ratio": {"long_name": "PGA / (g tan alpha)", "units": "1"},
-}
-
-
-def _peaks(motion: AbstractGroundMotion, samples: int = 20001):
-    """(PGA in m/s^2, PGV in m/s) of each motion of a batch (flat 1-D arrays):
-    a record's from its samples, a pulse's on `samples` points."""
-    if isinstance(motion, Record):
-        return np.reshape(motion.pga, -1), np.reshape(motion.pgv, -1)
-    shape = motion.batch_shape
-    flat = jax.tree_util.tree_map(
-        lambda x: jnp.broadcast_to(x, shape).reshape(-1), motion
-    )
-    start = np.reshape(np.asarray(flat.start_time), -1)
-    stop = np.reshape(np.asarray(flat.end_time), -1)
-    ts = start[:, None] + (stop - start)[:, None] * np.linspace(0.0, 1.0, samples)
-    acc = jax.vmap(lambda m, t: m.acceleration(t))
-    vel = jax.vmap(lambda m, t: m.velocity(t))
-    t = jnp.asarray(ts)
-    pga = np.abs(np.asarray(acc(flat, t))).max(axis=1)
-    pgv = np.abs(np.asarray(vel(flat, t))).max(axis=1)
-    return pga, pgv
 
 
 def fit_lognormal(im, failed, *, trials=None):
@@ -221,8 +193,9 @@ class Fragility(eqx.Module):
         rocked: whether each analysis rocked, overturning included (bool).
         overturned: whether each analysis overturned (bool).
         status: the `Status` codes.
-        measure: "pga" (m/s^2), "pgv" (m/s) or "pga_ratio", the
-            dimensionless PGA / (g tan alpha).
+        measure: the intensity measure, a name of `intensity_measure`
+            (e.g. "pga", m/s^2; "sa:1.0", Sa(1 s) in m/s^2; "pga_ratio",
+            the dimensionless PGA / (g tan alpha)).
         median_rocking: the median of the fit of P(rocking), in the units of
             `im`; NaN when every or no analysis rocked, or when rocking does
             not lean to larger IM (see `fit_lognormal`).
@@ -324,7 +297,7 @@ class Fragility(eqx.Module):
             coords[k] = ((), getattr(self, k), ATTRS[k])
         shape = self.coordinates.sizes()
         shape = (-1,) + shape if self.scales is not None else shape
-        im = _IM_ATTRS[self.measure]
+        im = measure_attrs(self.measure)
         fit = {}
         for which in ("rocking", "overturning"):
             fit[f"median_{which}"] = ((), getattr(self, f"median_{which}"), im)
@@ -348,16 +321,18 @@ class Fragility(eqx.Module):
         return dataset(rows | fit, coords, attrs)
 
 
-def _moving_peaks(motions):
-    """(PGA, PGV) of each motion; `ValueError` if one does not move the ground."""
-    pga, pgv = _peaks(motions)
-    if not (np.all(pga > 0) and np.all(pgv > 0)):
+def _moving_measure(motions, measure, slenderness, size):
+    """The intensity measure of each motion; `ValueError` if one does not move
+    the ground (a measure of 0)."""
+    im = np.reshape(
+        intensity_measure(motions, measure, slenderness=slenderness, size=size), -1
+    )
+    if not np.all(im > 0):
         raise ValueError(
             "every motion of `motions` must move the ground (an intensity measure "
-            f"> 0): {int(np.sum(~((pga > 0) & (pgv > 0))))} of them have zero "
-            "amplitude"
+            f"> 0): {int(np.sum(~(im > 0)))} of them have zero amplitude"
         )
-    return pga, pgv
+    return im
 
 
 def fragility(
@@ -376,8 +351,11 @@ def fragility(
     suite of records (`Record.stack`) at every factor of `scales`, or any
     batched motion (a batched `MPPulse`, a suite) as it is. The analyses run
     as one behavior map with motion axes. The intensity measure of each
-    analysis is computed from its own scaled motion: "pga" (m/s^2), "pgv"
-    (m/s) or "pga_ratio", PGA / (g tan alpha). P(rocking) and P(overturning)
+    analysis is computed from its own scaled motion by `intensity_measure`
+    (the block's measures with this block): "pga" (m/s^2), "pgv" (m/s),
+    "pgd" (m), "sa:T" (Sa at T s and 5% damping, m/s^2), "arias" (m/s),
+    "cav" (m/s), "d5_95" (s), "pga_ratio", "pgv_ratio" or
+    "frequency_ratio". P(rocking) and P(overturning)
     are fitted as lognormal curves by maximum likelihood over the analyses
     whose status is SUCCESS.
 
@@ -389,7 +367,7 @@ def fragility(
             pulse.
         scales: amplitude factors (> 0) applied to every motion; None: the
             motions as given.
-        measure: "pga", "pgv" or "pga_ratio".
+        measure: a name of `intensity_measure`; default "pga".
         **map_options: passed to `behavior_map` (rtol, duration, store,
             executor, ...).
 
@@ -408,8 +386,7 @@ def fragility(
         >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
         ...                     scales=[0.2, 0.5, 1.0, 1.5])  # doctest: +SKIP
     """
-    if measure not in MEASURES:
-        raise ValueError(f"`measure` must be one of {MEASURES}, got {measure!r}")
+    parse_measure(measure)
     check_base_and_motion(base, motions)
     unbatched("base", base, "fragility")
     members = int(np.prod(motions.batch_shape))
@@ -423,12 +400,10 @@ def fragility(
             "`motions` must be an ensemble (a suite of records or a batched pulse), "
             "or give `scales`"
         )
-    pga, pgv = _moving_peaks(motions)
+    im = _moving_measure(motions, measure, slenderness, size)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     outcome = bm.outcome.reshape(-1)
-    pga = np.broadcast_to(pga, outcome.shape)
-    pgv = np.broadcast_to(pgv, outcome.shape)
-    im = {"pga": pga, "pgv": pgv, "pga_ratio": pga * slenderness / GRAVITY}[measure]
+    im = np.broadcast_to(im, outcome.shape)
     ok = bm.status.reshape(-1) == Status.SUCCESS
     rocked = outcome != Outcome.NO_ROCKING
     overturned = outcome == Outcome.OVERTURNED

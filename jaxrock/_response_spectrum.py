@@ -37,11 +37,12 @@ class MotionSamples(eqx.Module):
     factor: np.ndarray
     batch_shape: tuple = eqx.field(static=True)
 
-    def per_member(self, values):
+    def per_member(self, values, power: int = 1):
         """Values of the rows (leading axis) for each member, times its
-        factor (for quantities linear in x_g''), shaped (*batch_shape, ...)."""
+        factor to `power` (1 for quantities linear in x_g''), shaped
+        (*batch_shape, ...)."""
         values = np.asarray(values)
-        factor = self.factor.reshape((-1,) + (1,) * (values.ndim - 1))
+        factor = self.factor.reshape((-1,) + (1,) * (values.ndim - 1)) ** power
         out = factor * values[self.row]
         return out.reshape(self.batch_shape + values.shape[1:])
 

@@ -63,6 +63,35 @@ def _wrap(text: str) -> str:
     )
 
 
+_MEASURES = (
+    "pga",
+    "pgv",
+    "pgd",
+    "arias",
+    "cav",
+    "d5_95",
+    "pga_ratio",
+    "pgv_ratio",
+    "frequency_ratio",
+)
+
+
+def _measure(text: str) -> str:
+    """An intensity measure's name, or sa:T with T > 0 (s)."""
+    if text in _MEASURES:
+        return text
+    if text.startswith("sa:"):
+        try:
+            period = float(text[3:])
+        except ValueError:
+            period = float("nan")
+        if period > 0 and period < float("inf"):
+            return text
+    raise argparse.ArgumentTypeError(
+        f"must be one of {', '.join(_MEASURES)} or sa:T (T in s, > 0), got {text!r}"
+    )
+
+
 def _range(text: str):
     """START:STOP:N -> N values from START to STOP inclusive."""
     import numpy as np
@@ -335,10 +364,12 @@ def _add_fragility(sub) -> None:
     )
     f.add_argument(
         "--measure",
-        choices=["pga", "pgv", "pga_ratio"],
+        type=_measure,
         default="pga",
-        help="intensity measure: peak ground acceleration (m/s^2), peak ground "
-        "velocity (m/s), or pga_ratio = PGA / (g tan alpha)",
+        help="intensity measure: pga (m/s^2), pgv (m/s), pgd (m), sa:T (Sa at "
+        "period T s, 5%% damping, m/s^2), arias (m/s), cav (m/s), d5_95 (s), "
+        "pga_ratio = PGA / (g tan alpha), pgv_ratio = PGV p / (g tan alpha), "
+        "frequency_ratio = omega_p / p (a pulse)",
     )
 
 

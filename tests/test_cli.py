@@ -215,7 +215,7 @@ def test_help_shows_defaults_and_explains_options(capsys):
     with pytest.raises(SystemExit):
         main(["fragility", "-h"])
     text = " ".join(capsys.readouterr().out.split())
-    assert "--measure {pga,pgv,pga_ratio} intensity measure" in text
+    assert "--measure MEASURE intensity measure: pga (m/s^2)" in text
     assert "(default: pga)" in text
 
 

@@ -1,0 +1,119 @@
+"""Intensity measures against independent integrals on a fine grid, their
+scaling, and fragility by any measure."""
+
+import numpy as np
+import pytest
+
+import jaxrock as jr
+
+GRAVITY = 9.81
+
+
+@pytest.fixture(scope="module")
+def record():
+    rng = np.random.default_rng(3)
+    return jr.Record(rng.normal(0.0, 2.0, 40), 0.02)
+
+
+def _fine(record, per=2000):
+    """x_g'' linear between samples, on `per` points an interval."""
+    n, dt = int(record.length), float(record.dt)
+    t = np.linspace(0.0, (n - 1) * dt, (n - 1) * per + 1)
+    return t, np.interp(t, dt * np.arange(n), np.asarray(record.samples))
+
+
+def _cumulative(t, y):
+    return np.concatenate([[0.0], np.cumsum(0.5 * np.diff(t) * (y[1:] + y[:-1]))])
+
+
+def test_measures_of_a_record_match_integrals_on_a_fine_grid(record):
+    t, a = _fine(record)
+    v = _cumulative(t, a)
+    d = _cumulative(t, v)
+    square = _cumulative(t, a * a)
+    im = {m: float(jr.intensity_measure(record, m)) for m in jr_measures()}
+    assert im["pga"] == np.abs(np.asarray(record.samples)).max()
+    # Peaks over the samples; the trapezoids of the fine grid err by
+    # O((dt / 2000)^2): 1e-7 of the Arias intensity here.
+    assert im["pgv"] == pytest.approx(np.abs(v[::2000]).max(), rel=1e-7)
+    assert im["pgv"] == pytest.approx(float(record.pgv), rel=1e-12)
+    assert im["pgd"] == pytest.approx(np.abs(d[::2000]).max(), rel=1e-7)
+    assert im["arias"] == pytest.approx(np.pi / (2 * GRAVITY) * square[-1], rel=1e-6)
+    assert im["cav"] == pytest.approx(_cumulative(t, np.abs(a))[-1], rel=1e-7)
+    start, end = np.interp([0.05, 0.95], square / square[-1], t)
+    # D5-95 reads the Arias intensity linear between samples: within a sample.
+    assert im["d5_95"] == pytest.approx(end - start, abs=float(record.dt))
+    spectrum = jr.response_spectrum(record, [0.3])
+    assert im["sa:0.3"] == spectrum.pseudo_acceleration[0]
+
+
+def jr_measures():
+    return ["pga", "pgv", "pgd", "arias", "cav", "d5_95", "sa:0.3"]
+
+
+def test_measures_of_a_scaled_suite_scale(record):
+    other = jr.Record(np.asarray(record.samples)[::-1][:30], 0.01)
+    suite = jr.Record.stack([record, other])
+    scaled = suite.scaled([0.5, 3.0])
+    power = {"arias": 2, "d5_95": 0}
+    for m in jr_measures():
+        own = jr.intensity_measure(suite, m)
+        np.testing.assert_allclose(
+            jr.intensity_measure(scaled, m),
+            np.array([0.5, 3.0])[:, None] ** power.get(m, 1) * own,
+            rtol=1e-14,
+        )
+        assert own[1] == pytest.approx(float(jr.intensity_measure(other, m)), rel=1e-14)
+
+
+def test_block_measures():
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    pga = float(jr.intensity_measure(pulse, "pga"))
+    pgv = float(jr.intensity_measure(pulse, "pgv"))
+    assert pgv == pytest.approx(float(pulse.amplitude), rel=1e-6)  # max v = A
+    p = np.sqrt(3 * GRAVITY / (4 * 2.0))
+    got = jr.intensity_measure(pulse, "pga_ratio", slenderness=4.0)
+    assert float(got) == pytest.approx(pga * 4.0 / GRAVITY, rel=1e-14)
+    got = jr.intensity_measure(pulse, "pgv_ratio", slenderness=4.0, size=2.0)
+    assert float(got) == pytest.approx(pgv * p * 4.0 / GRAVITY, rel=1e-14)
+    got = jr.intensity_measure(pulse, "frequency_ratio", slenderness=4.0, size=2.0)
+    assert float(got) == pytest.approx(2 * np.pi * float(pulse.frequency) / p)
+
+
+def test_fragility_by_spectral_acceleration():
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    scales = np.array([0.2, 0.4, 0.6, 0.8, 1.0, 1.2])
+    frag = jr.fragility(
+        4.0, 1.0, jr.FixedBase(), pulse, scales=scales, measure="sa:1.0"
+    )
+    sa = float(jr.intensity_measure(pulse, "sa:1.0"))
+    np.testing.assert_allclose(frag.im, scales * sa, rtol=1e-14)
+    assert frag.measure == "sa:1.0"
+    pytest.importorskip("xarray")
+    assert frag.to_xarray().im.attrs["long_name"] == "Sa(1 s), 5% damping"
+
+
+@pytest.mark.parametrize(
+    "measure, options, message",
+    [
+        ("sa:0", {}, "`measure` must be one of pga, "),
+        ("sa:x", {}, "or 'sa:T'"),
+        ("PGA", {}, "`measure` must be one of"),
+        ("pgv_ratio", {"slenderness": 4.0}, "needs the block's `slenderness` and"),
+        ("pga_ratio", {}, "needs the block's `slenderness`"),
+        ("pga_ratio", {"slenderness": -1.0}, "`slenderness` must be finite and > 0"),
+    ],
+)
+def test_intensity_measure_names_bad_input(record, measure, options, message):
+    with pytest.raises(ValueError, match=message):
+        jr.intensity_measure(record, measure, **options)
+    if measure.lower() != measure or measure.startswith("sa:"):  # before any map
+        with pytest.raises(ValueError, match=message):
+            jr.fragility(
+                4.0, 1.0, jr.FixedBase(), record, scales=[1.0], measure=measure
+            )
+
+
+def test_frequency_ratio_of_a_record_is_refused(record):
+    with pytest.raises(ValueError, match="needs a pulse"):
+        jr.intensity_measure(record, "frequency_ratio", slenderness=4.0, size=1.0)
