@@ -11,12 +11,19 @@ tight reference (SciPy at rtol 1e-12) gives the max-rotation error of the map
 and of SciPy at rtol 1e-6 .. 1e-9 (relative, on the cells that rock); SciPy
 at the loosest rtol whose max error is at most the map's is the like-for-like
 loop, its time that at the map's rtol scaled by
-its vector-field evaluations. The Numba column holds the times of a
-hand-written Numba implementation (Dormand-Prince 5(4), events on its dense
-output, 2 threads) measured on the same machine, and the ratio they give
-against the same SciPy loop.
+its vector-field evaluations.
+
+The peer (benchmarks/peer.py, the model written by hand in Numba: Dormand-Prince
+5(4), events on its dense output, the friction pendulum's z integrated) runs
+the same map in the same process, at the same rtol and atol, on as many
+threads as jaxrock has cores, its calls alternated with jaxrock's: its compile
+time, best run, steps per analysis, the cells whose outcome differs from
+jaxrock's, its error on the sample against the tight reference, and jaxrock's
+time over the peer's (the median of the paired runs' ratios, and the ratio of
+the best runs). `--no-peer` leaves it out.
 
     python benchmarks/behavior_map.py [--repeats 3] [--sample 40] [--bases fixed,fps]
+        [--no-peer]
 """
 
 import argparse
@@ -36,6 +43,9 @@ import jaxrock as jr  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 import reference as ref  # noqa: E402
+from _peer_runs import SideBySide as _SideBySide  # noqa: E402
+from _peer_runs import import_peer as _peer  # noqa: E402
+from _peer_runs import peer_table  # noqa: E402
 from _results import write_results  # noqa: E402
 
 PULSE = "San Fernando PCD/SN"
@@ -47,7 +57,6 @@ BASES = {
         ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0),
     ),
 }
-NUMBA = {"fixed": 0.14, "linear": 0.21, "fps": 1.1}  # s, hand-written Numba
 SCIPY_RTOLS = (1e-6, 1e-7, 1e-8, 1e-9)  # and the map's rtol
 
 
@@ -58,7 +67,9 @@ def main():
     p.add_argument("--bases", default="fixed,linear,fps")
     p.add_argument("--chunk-size", type=int, default=610)
     p.add_argument("--rtol", type=float, default=1e-8)
+    p.add_argument("--no-peer", action="store_true")
     a = p.parse_args()
+    peer = None if a.no_peer else _peer()
     lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
     size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
     motion = jr.near_fault_pulse(PULSE)
@@ -74,9 +85,20 @@ def main():
         t = time.perf_counter()
         jr.behavior_map(lam, size, base, motion, **kw)
         first_s = time.perf_counter() - t
-        runs = [
-            jr.behavior_map(lam, size, base, motion, **kw) for _ in range(a.repeats)
-        ]
+        peer_motion = (
+            None
+            if peer is None
+            else peer.mp_pulse(table[0] / 100, table[3], table[1], table[2])
+        )
+        peer_kw = dict(rtol=a.rtol, atol=a.rtol * 1e-2, threads=os.cpu_count())
+        side = _SideBySide(
+            lambda: jr.behavior_map(lam, size, base, motion, **kw),
+            None
+            if peer is None
+            else lambda: peer.behavior_map(lam, size, ref_base, peer_motion, **peer_kw),
+            a.repeats,
+        )
+        runs = side.runs
         best = min(r.seconds for r in runs)
         bm = runs[0]
         cells = [
@@ -156,32 +178,41 @@ def main():
                 like_rtol=like,
                 like_scipy_map_s=scipy_errors[like][0],
                 speedup_same_accuracy=scipy_errors[like][0] / best,
-                numba_speedup_vs_scipy=scipy_map / NUMBA[name],
-                numba_s=NUMBA[name],
                 counts=bm.counts(),
                 rtol=a.rtol,
                 chunk_size=a.chunk_size,
             )
         )
+        if peer is not None:
+            rows[-1] |= side.peer_row(bm)
+            rows[-1]["peer_rotation_error"] = error(
+                [
+                    peer.simulate(
+                        lam[i], size[j], ref_base, peer_motion, rtol=a.rtol,
+                        atol=a.rtol * 1e-2,
+                    )["max_rotation"]
+                    for i, j in cells
+                ]
+            )  # fmt: skip
+            rows[-1]["peer_speedup_vs_scipy"] = scipy_map / rows[-1]["peer_s"]
         print(f"{name}: {bm.summary()}", flush=True)
     header = (
-        "| base | compile (s) | run (s) | Numba (s) | analyses/s "
+        "| base | compile (s) | run (s) | analyses/s "
         "| lane eff. | SciPy map (s, extrap.) | speed-up | peak RSS (MB) |"
     )
-    lines = [header, "|" + "---|" * 9]
+    lines = [header, "|" + "---|" * 8]
     for r in rows:
         lines.append(
-            f"| {r['base']} | {r['compile_s']:.1f} | {r['run_s']:.2f} | "
-            f"{r['numba_s']} | {r['analyses_per_s']:.0f} | "
+            f"| {r['base']} | {r['compile_s']:.1f} | {r['run_s']:.3f} | "
+            f"{r['analyses_per_s']:.0f} | "
             f"{r['lane_efficiency']:.0%} | {r['scipy_map_s']:.0f} | "
             f"{r['speedup_vs_scipy']:.0f}x | {r['peak_rss_mb']:.0f} |"
         )
     lines += [
         "",
         "| base | map error (max / median) | SciPy error at the same rtol "
-        "| SciPy as accurate as the map: rtol, map (s) | speed-up, same accuracy "
-        "| Numba's speed-up |",
-        "|" + "---|" * 6,
+        "| SciPy as accurate as the map: rtol, map (s) | speed-up, same accuracy |",
+        "|" + "---|" * 5,
     ]
     for r in rows:
         same = r["scipy_rotation_error"][f"{r['rtol']:g}"]
@@ -189,9 +220,25 @@ def main():
             f"| {r['base']} | {r['map_rotation_error'][0]:.1e} / "
             f"{r['map_rotation_error'][1]:.1e} | {same[1]:.1e} / {same[2]:.1e} | "
             f"{r['like_rtol']:g}, {r['like_scipy_map_s']:.0f} | "
-            f"{r['speedup_same_accuracy']:.0f}x | "
-            f"{r['numba_speedup_vs_scipy']:.0f}x |"
+            f"{r['speedup_same_accuracy']:.0f}x |"
         )
+    peered = [r for r in rows if "peer_s" in r]
+    if peered:
+        lines += [""] + peer_table(peered, "base")
+        lines += [
+            "",
+            "| base | peer error (max / median) | map error (max / median) "
+            "| peer's speed-up over SciPy |",
+            "|---|---|---|---|",
+        ]
+        for r in peered:
+            lines.append(
+                f"| {r['base']} | {r['peer_rotation_error'][0]:.1e} / "
+                f"{r['peer_rotation_error'][1]:.1e} | "
+                f"{r['map_rotation_error'][0]:.1e} / "
+                f"{r['map_rotation_error'][1]:.1e} | "
+                f"{r['peer_speedup_vs_scipy']:.0f}x |"
+            )
     md = "\n".join(lines)
     write_results("behavior_map", rows, md)
 

@@ -13,8 +13,15 @@ rtol and atol (the cells that change there: "sensitive" cells, whose
 response depends on the solver's last digits). Prints a Markdown table and
 writes benchmarks/results/record_maps.{json,md}.
 
+The peer (benchmarks/peer.py, the model written by hand in Numba, steps cut
+at the samples) runs each Pacoima map in the same process, at jaxrock's
+default rtol and atol, on as many threads as jaxrock has cores, its calls
+alternated with jaxrock's (benchmarks/_peer_runs.py): its compile time, best
+run, steps per analysis, the cells whose outcome differs from jaxrock's, and
+jaxrock's time over the peer's. `--no-peer` leaves it out.
+
     python benchmarks/record_maps.py [--repeats 2] [--bases fixed,linear,fps]
-        [--no-suite] [--converged] [--tag NAME]
+        [--no-suite] [--converged] [--no-peer] [--tag NAME]
 """
 
 import argparse
@@ -28,10 +35,17 @@ import numpy as np
 # Compile times are measured cold: no compiled loop from the cache folder.
 os.environ.setdefault("JAXROCK_CACHE", "off")
 
+from _peer_runs import SideBySide, import_peer, peer_table  # noqa: E402
 from _results import markdown_table, write_results  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
+# The peer's bases (the tuples of tests/reference.py).
+PEER_BASES = {
+    "fixed": ("fixed",),
+    "linear": ("linear", 2.0, 0.35, 0.5),
+    "fps": ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 2.0),
+}
 BASES = {
     "fixed": jr.FixedBase(),
     "linear": jr.LinearIsolator(2.0, 0.35, 0.5),
@@ -88,17 +102,39 @@ def main():
     p.add_argument("--bases", default="fixed,linear,fps")
     p.add_argument("--no-suite", action="store_true")
     p.add_argument("--converged", action="store_true")
+    p.add_argument("--no-peer", action="store_true")
     p.add_argument("--tag", default="record_maps")
     a = p.parse_args()
     lam, size = SLENDERNESS, SIZE
     record = pacoima()
+    peer = None if a.no_peer else import_peer()
     rows = []
     for name in a.bases.split(","):
-        bm, compile_s = _time(
-            lambda: jr.behavior_map(lam, size, BASES[name], record, progress=False),
-            a.repeats,
-        )
-        rows.append(_row(name, "Pacoima Dam 164", bm, compile_s))
+
+        def run():
+            return jr.behavior_map(lam, size, BASES[name], record, progress=False)
+
+        if peer is None:
+            bm, compile_s = _time(run, a.repeats)
+            rows.append(_row(name, "Pacoima Dam 164", bm, compile_s))
+        else:
+            t = time.perf_counter()
+            first = run()
+            first_s = time.perf_counter() - t
+            motion = peer.record(np.asarray(record.samples), float(record.dt))
+            side = SideBySide(
+                run,
+                lambda: peer.behavior_map(
+                    lam, size, PEER_BASES[name], motion, threads=os.cpu_count()
+                ),
+                a.repeats,
+            )
+            bm = min(side.runs, key=lambda r: r.seconds)
+            del first
+            rows.append(
+                _row(name, "Pacoima Dam 164", bm, max(first_s - bm.seconds, 0.0))
+            )
+            rows[-1] |= side.peer_row(bm)
         if a.converged:
             again = dict(progress=False)
             rest = jr.behavior_map(
@@ -140,6 +176,9 @@ def main():
             ("peak RSS (MB)", "{peak_rss_mb:.0f}"),
         ],
     )
+    peered = [r for r in rows if "peer_s" in r]
+    if peered:
+        md += [""] + peer_table(peered, "map")
     converged = [r for r in rows if "rtol_changed" in r]
     if converged:
         md += [""] + markdown_table(
