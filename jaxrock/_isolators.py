@@ -2,8 +2,9 @@
 
 An isolated base of mass m_b carries the block of mass m; `mass_ratio` is
 mbar = m / m_b and M = m + m_b. The base state is u (m, relative to the ground),
-u' (m/s) and, for the friction pendulum only, the Bouc-Wen variable z (-) or,
-with z in closed form, what z depends on (`FrictionPendulum`).
+u' (m/s) and, for a Bouc-Wen isolator (a friction pendulum, a bilinear
+isolator), the Bouc-Wen variable z (-) or, with z in closed form, what z
+depends on (`AbstractClosedFormBoucWen`).
 Forces are returned per unit total mass, f = F / M (m/s^2), so the block mass
 never appears.
 """
@@ -41,8 +42,8 @@ class AbstractIsolator(AbstractChecked):
     base degree of freedom). `free_rocking_closed_form` marks a base on which
     a rocking block's motion has a closed form once the ground is still
     (`behavior_map` then finishes it without steps). The bases are
-    `FixedBase`, `LinearIsolator`, `FrictionPendulum` and
-    `IntegratedFrictionPendulum`.
+    `FixedBase`, `LinearIsolator`, `FrictionPendulum`,
+    `IntegratedFrictionPendulum` and `BilinearIsolator`.
 
     Examples:
         >>> import jaxrock as jr
@@ -230,46 +231,52 @@ class LinearIsolator(AbstractIsolator):
         return self.mass_ratio / (1.0 + self.mass_ratio)
 
 
-class AbstractFrictionPendulum(AbstractIsolator):
-    """Friction pendulum system with Bouc-Wen hysteresis, F = K u + Q z.
+class AbstractBoucWenIsolator(AbstractIsolator):
+    """The paper's nonlinear isolator, Eqs. (2.5)-(2.6): a bilinear hysteretic
+    force F = K u + Q z, with the dimensionless Bouc-Wen variable z,
 
-    The pendulum stiffness K = M g / R (N/m) and the friction force
-    Q = mu M g (N), with M = m + m_b the total mass of block and base, the
-    friction coefficient mu and the radius R (m) of the sliding surface. The
-    dimensionless Bouc-Wen variable z obeys
+        Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta,
 
-        Y z' = A u' - gamma |u'| z |z|^(eta - 1) - beta u' |z|^eta
-
-    with the yield displacement Y (m). z is stiff: |z'| reaches |u'| / Y.
-    `FrictionPendulum` (eta = 2) has z in closed form;
-    `IntegratedFrictionPendulum` integrates it (any eta >= 1). Both take the
-    parameters mu, R, m / m_b, Y, A, gamma and beta (see `FrictionPendulum`).
-    The paper uses mu = 0.11, R = 2.24 m, a mass ratio of 0.5, A = 1,
-    gamma = 0.9, beta = 0.1, eta = 2 and Y = 0.5 mm.
+    the yield displacement Y (m), the post-yield stiffness K (N/m) and the
+    characteristic strength Q (N), the force at which the isolator yields
+    (beyond K Y). z is stiff: |z'| reaches |u'| / Y. A subclass gives K / M
+    (`stiffness_per_mass`, 1/s^2) and Q / M (`strength_per_mass`, m/s^2), M
+    the total mass: `FrictionPendulum` (K = M g / R, Q = mu M g) and
+    `BilinearIsolator` (K and Q of a lead-rubber or other bilinear bearing).
+    The paper's Bouc-Wen constants are A = 1, gamma = 0.9, beta = 0.1,
+    eta = 2.
 
     Examples:
         >>> import jaxrock as jr
-        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
-        >>> isinstance(base, jr.AbstractFrictionPendulum), base.eta
-        (True, 2.0)
+        >>> base = jr.BilinearIsolator(strength=0.05, period=2.5,
+        ...                            yield_displacement=0.01, mass_ratio=0.5)
+        >>> isinstance(base, jr.AbstractBoucWenIsolator)
+        True
+        >>> round(float(base.stiffness_per_mass), 4)  # (2 pi / 2.5 s)^2
+        6.3165
     """
 
-    friction: Float[Array, "..."] = parameter("friction", "1")
-    radius: Float[Array, "..."] = parameter("radius", "m")
-    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
-    yield_displacement: Float[Array, "..."] = parameter(
-        "yield_displacement", "m", default=5e-4
-    )
-    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
-    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
-    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
+    mass_ratio: eqx.AbstractVar[Float[Array, "..."]]
+    yield_displacement: eqx.AbstractVar[Float[Array, "..."]]
+    A: eqx.AbstractVar[Float[Array, "..."]]
+    gamma: eqx.AbstractVar[Float[Array, "..."]]
+    beta: eqx.AbstractVar[Float[Array, "..."]]
     eta: eqx.AbstractClassVar[float]
     hysteretic_state: ClassVar[bool] = True
 
-    def constraints(self):
+    @property
+    @abc.abstractmethod
+    def stiffness_per_mass(self) -> Float[Array, "..."]:
+        """K / M (1/s^2): the post-yield stiffness over the total mass."""
+
+    @property
+    @abc.abstractmethod
+    def strength_per_mass(self) -> Float[Array, "..."]:
+        """Q / M (m/s^2): the characteristic strength over the total mass."""
+
+    def bouc_wen_constraints(self) -> list[Constraint]:
+        """The ranges of the parameters every Bouc-Wen isolator has."""
         return [
-            at_least_zero("friction", self.friction),
-            greater_than_zero("radius", self.radius),
             greater_than_zero("mass_ratio", self.mass_ratio),
             greater_than_zero("yield_displacement", self.yield_displacement),
             greater_than_zero("A", self.A),
@@ -279,50 +286,41 @@ class AbstractFrictionPendulum(AbstractIsolator):
             ),
         ]
 
-    def describe(self):
-        return (
-            f"friction pendulum (mu = {describe_values(self.friction)}, "
-            f"R = {describe_values(self.radius)} m, "
-            f"mass ratio {describe_values(self.mass_ratio)})"
-        )
-
     def initial_state(self):
-        return jnp.zeros(self.n_states, dtype=self.radius.dtype)
+        return jnp.zeros(self.n_states, dtype=self.yield_displacement.dtype)
 
     @abc.abstractmethod
     def hysteretic(self, state):
         """The Bouc-Wen variable z."""
 
     def force(self, state):
-        return GRAVITY * (
-            state[0] / self.radius + self.friction * self.hysteretic(state)
-        )
+        return self.stiffness_per_mass * state[
+            0
+        ] + self.strength_per_mass * self.hysteretic(state)
 
     def free_vibration_bounds(self, state):
-        # E = u'^2 / 2 + g u^2 / (2R) + mu g Y z^2 / (2A) cannot grow when
-        # gamma >= |beta| (Bouc-Wen is then dissipative); |u| <= sqrt(2 R E / g),
-        # |z| <= sqrt(2 A E / (mu g Y)) and |F / M| <= g |u| / R + mu g |z|.
+        # E = u'^2 / 2 + k u^2 / 2 + q Y z^2 / (2A) (k = K / M, q = Q / M)
+        # cannot grow when gamma >= |beta| (Bouc-Wen is then dissipative);
+        # |u| <= sqrt(2 E / k), |z| <= sqrt(2 A E / (q Y)) and
+        # |F / M| <= k |u| + q |z|.
         u, u_dot, z = state[0], state[1], self.hysteretic(state)
-        mu_g = self.friction * GRAVITY
+        k, q = self.stiffness_per_mass, self.strength_per_mass
         energy = (
             0.5 * u_dot**2
-            + 0.5 * GRAVITY * u**2 / self.radius
-            + 0.5 * mu_g * self.yield_displacement * z**2 / self.A
+            + 0.5 * k * u**2
+            + 0.5 * q * self.yield_displacement * z**2 / self.A
         )
         energy = jnp.maximum(energy, 1e-300)  # a finite derivative of sqrt at rest
-        u_bound = jnp.sqrt(2.0 * self.radius * energy / GRAVITY)
+        u_bound = jnp.sqrt(2.0 * energy / k)
         # Starting from z = 0, |z| never exceeds z_max = (A / (gamma + beta))^(1/eta).
         z_max = (self.A / (self.gamma + self.beta)) ** (1.0 / self.eta)
         z_bound = jnp.minimum(
             z_max,
             jnp.sqrt(
-                2.0
-                * self.A
-                * energy
-                / jnp.maximum(mu_g * self.yield_displacement, 1e-300)
+                2.0 * self.A * energy / jnp.maximum(q * self.yield_displacement, 1e-300)
             ),
         )
-        f_bound = GRAVITY * u_bound / self.radius + mu_g * z_bound
+        f_bound = k * u_bound + q * z_bound
         dissipative = self.gamma >= jnp.abs(self.beta)
         return (
             jnp.where(dissipative, u_bound, jnp.inf),
@@ -334,41 +332,17 @@ class AbstractFrictionPendulum(AbstractIsolator):
         return self.mass_ratio / (1.0 + self.mass_ratio)
 
 
-class FrictionPendulum(AbstractFrictionPendulum):
-    """Friction pendulum, F = K u + Q z, with its Bouc-Wen z exact in closed form.
+class AbstractClosedFormBoucWen(AbstractBoucWenIsolator):
+    """A Bouc-Wen isolator with eta = 2, its z exact in closed form.
 
-    K = M g / R (N/m) and Q = mu M g (N) as in `AbstractFrictionPendulum`,
-    with eta = 2. Along a monotone stretch of u, Y dz/du = A - c z^2 with
-    c = gamma + beta while |z| grows and beta - gamma while it shrinks, so z
-    is an explicit function of u from the stretch's start (u_r, z_r). The base
-    state is (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which
-    a shrinking |z| passes 0; the memory restarts at each reversal of u' (an
+    Along a monotone stretch of u, Y dz/du = A - c z^2 with c = gamma + beta
+    while |z| grows and beta - gamma while it shrinks, so z is an explicit
+    function of u from the stretch's start (u_r, z_r). The base state is
+    (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which a
+    shrinking |z| passes 0; the memory restarts at each reversal of u' (an
     event) or where an impact reverses u'. Without the stiff z, steps follow
     the motion: on the paper's friction-pendulum map, 5x fewer steps than
     `IntegratedFrictionPendulum`.
-
-    Args:
-        friction: mu, the friction coefficient (-), >= 0.
-        radius: R, the radius of curvature of the sliding surface (m), > 0.
-        mass_ratio: m / m_b, block mass over base mass (-), > 0.
-        yield_displacement: Y (m), > 0; default 5e-4.
-        A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
-        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
-
-    Raises:
-        ValueError: a concrete parameter that is not a real number or lies
-            outside its range (the message names the parameter and the range).
-
-    Examples:
-        >>> import jaxrock as jr
-        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
-        >>> base.describe()
-        'friction pendulum (mu = 0.11, R = 2.24 m, mass ratio 0.5)'
-        >>> state = base.initial_state()  # (u, u', u_r, z_r, w0) at rest
-        >>> state = state.at[0].set(0.01)  # u = 0.01 m = 20 Y past the start
-        >>> round(float(base.hysteretic(state)), 6)  # z: the pendulum slides
-        1.0
     """
 
     eta: ClassVar[float] = 2.0
@@ -420,6 +394,166 @@ class FrictionPendulum(AbstractFrictionPendulum):
     def peak_condition(self):
         # Every reversal of u' starts a new stretch, and includes the peaks.
         return condition_reversal
+
+
+class AbstractFrictionPendulum(AbstractBoucWenIsolator):
+    """Friction pendulum system with Bouc-Wen hysteresis, F = K u + Q z.
+
+    The pendulum stiffness K = M g / R (N/m) and the friction force
+    Q = mu M g (N), with M = m + m_b the total mass of block and base, the
+    friction coefficient mu and the radius R (m) of the sliding surface; z
+    as in `AbstractBoucWenIsolator`.
+    `FrictionPendulum` (eta = 2) has z in closed form;
+    `IntegratedFrictionPendulum` integrates it (any eta >= 1). Both take the
+    parameters mu, R, m / m_b, Y, A, gamma and beta (see `FrictionPendulum`).
+    The paper uses mu = 0.11, R = 2.24 m, a mass ratio of 0.5, A = 1,
+    gamma = 0.9, beta = 0.1, eta = 2 and Y = 0.5 mm.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
+        >>> isinstance(base, jr.AbstractFrictionPendulum), base.eta
+        (True, 2.0)
+    """
+
+    friction: Float[Array, "..."] = parameter("friction", "1")
+    radius: Float[Array, "..."] = parameter("radius", "m")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
+    yield_displacement: Float[Array, "..."] = parameter(
+        "yield_displacement", "m", default=5e-4
+    )
+    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
+
+    def constraints(self):
+        return [
+            at_least_zero("friction", self.friction),
+            greater_than_zero("radius", self.radius),
+        ] + self.bouc_wen_constraints()
+
+    def describe(self):
+        return (
+            f"friction pendulum (mu = {describe_values(self.friction)}, "
+            f"R = {describe_values(self.radius)} m, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
+
+    @property
+    def stiffness_per_mass(self):
+        return GRAVITY / self.radius
+
+    @property
+    def strength_per_mass(self):
+        return self.friction * GRAVITY
+
+    def force(self, state):
+        # g (u / R + mu z): K u + Q z over M, in the arithmetic of the
+        # friction pendulum's maps as published in the documentation.
+        return GRAVITY * (
+            state[0] / self.radius + self.friction * self.hysteretic(state)
+        )
+
+
+class FrictionPendulum(AbstractFrictionPendulum, AbstractClosedFormBoucWen):
+    """Friction pendulum, F = K u + Q z, with its Bouc-Wen z exact in closed form.
+
+    K = M g / R (N/m) and Q = mu M g (N) as in `AbstractFrictionPendulum`,
+    with eta = 2 and z as in `AbstractClosedFormBoucWen`. The base state is
+    (u, u', u_r, z_r, w0). It is the `BilinearIsolator` of the same K, Q
+    and Y.
+
+    Args:
+        friction: mu, the friction coefficient (-), >= 0.
+        radius: R, the radius of curvature of the sliding surface (m), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        yield_displacement: Y (m), > 0; default 5e-4.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> base = jr.FrictionPendulum(friction=0.11, radius=2.24, mass_ratio=0.5)
+        >>> base.describe()
+        'friction pendulum (mu = 0.11, R = 2.24 m, mass ratio 0.5)'
+        >>> state = base.initial_state()  # (u, u', u_r, z_r, w0) at rest
+        >>> state = state.at[0].set(0.01)  # u = 0.01 m = 20 Y past the start
+        >>> round(float(base.hysteretic(state)), 6)  # z: the pendulum slides
+        1.0
+    """
+
+
+class BilinearIsolator(AbstractClosedFormBoucWen):
+    """A bilinear hysteretic isolator (a lead-rubber or high-damping rubber
+    bearing, a steel damper), F = K u + Q z with the paper's Bouc-Wen z,
+    exact in closed form (eta = 2, `AbstractClosedFormBoucWen`).
+
+    K = M (2 pi / T)^2 (N/m), the post-yield stiffness, and Q = q M g (N), the
+    characteristic strength, M = m + m_b. The force-displacement loop is
+    bilinear: stiffness K + Q / Y up to the yield displacement Y, then K. Unlike
+    a friction pendulum's, K and Q do not depend on the normal force. A
+    friction pendulum is the special case T = 2 pi sqrt(R / g), q = mu.
+
+    Args:
+        strength: q = Q / (M g), the characteristic strength over the weight
+            (-), >= 0 (lead-rubber bearings: about 0.03-0.1).
+        period: T, the period of the post-yield stiffness (s), > 0.
+        yield_displacement: Y (m), > 0 (lead-rubber bearings: about 0.01-0.03).
+        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> base = jr.BilinearIsolator(strength=0.06, period=2.5,
+        ...                            yield_displacement=0.015, mass_ratio=0.5)
+        >>> base.describe()
+        'bilinear isolator (Q / Mg = 0.06, T = 2.5 s, Y = 0.015 m, mass ratio 0.5)'
+        >>> r = jr.simulate(jr.Block(4.0, 1.0), base,
+        ...                 jr.near_fault_pulse("Northridge JFA/SN"))
+        >>> jr.Outcome(int(r.outcome)).name, bool(r.ok)
+        ('OVERTURNED', True)
+    """
+
+    strength: Float[Array, "..."] = parameter("strength", "1")
+    period: Float[Array, "..."] = parameter("period", "s")
+    yield_displacement: Float[Array, "..."] = parameter("yield_displacement", "m")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
+    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
+
+    def constraints(self):
+        return [
+            at_least_zero("strength", self.strength),
+            greater_than_zero("period", self.period),
+        ] + self.bouc_wen_constraints()
+
+    def describe(self):
+        return (
+            f"bilinear isolator (Q / Mg = {describe_values(self.strength)}, "
+            f"T = {describe_values(self.period)} s, "
+            f"Y = {describe_values(self.yield_displacement)} m, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
+
+    @property
+    def stiffness_per_mass(self):
+        return (2.0 * jnp.pi / self.period) ** 2
+
+    @property
+    def strength_per_mass(self):
+        return self.strength * GRAVITY
 
 
 class IntegratedFrictionPendulum(AbstractFrictionPendulum):

@@ -214,17 +214,30 @@ def _add_base_options(q, out: str, compare: str) -> None:
     help of --base."""
     q.add_argument(
         "--base",
-        choices=["fixed", "linear", "fps"],
+        choices=["fixed", "linear", "fps", "bilinear"],
         default="linear",
         help="base to analyse: fixed (no isolation), linear (linear isolator: "
-        "--period, --damping, --mass-ratio) or fps (friction pendulum: "
-        f"--friction, --radius, --mass-ratio){compare}",
+        "--period, --damping, --mass-ratio), fps (friction pendulum: "
+        "--friction, --radius, --mass-ratio) or bilinear (bilinear isolator: "
+        f"--strength, --period, --yield-displacement, --mass-ratio){compare}",
     )
     q.add_argument(
         "--period",
         type=float,
         default=2.0,
-        help="T_s, isolation period (s), linear",
+        help="T_s, isolation period (s), linear; period of K (s), bilinear",
+    )
+    q.add_argument(
+        "--strength",
+        type=float,
+        default=0.06,
+        help="Q / Mg, characteristic strength over the weight, bilinear",
+    )
+    q.add_argument(
+        "--yield-displacement",
+        type=float,
+        default=0.015,
+        help="Y, yield displacement (m), bilinear",
     )
     q.add_argument(
         "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
@@ -242,7 +255,7 @@ def _add_base_options(q, out: str, compare: str) -> None:
         "--mass-ratio",
         type=float,
         default=0.5,
-        help="m / m_b, block mass over base mass, linear and fps",
+        help="m / m_b, block mass over base mass, isolated bases",
     )
     _add_out(q, out)
 
@@ -604,6 +617,10 @@ def _base(a):
         return jr.FixedBase()
     if a.base == "linear":
         return jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
+    if a.base == "bilinear":
+        return jr.BilinearIsolator(
+            a.strength, a.period, a.yield_displacement, a.mass_ratio
+        )
     return jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
 
 

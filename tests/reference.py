@@ -72,7 +72,8 @@ def simulate(
     atol=1e-12,
     breaks=None,
 ):
-    """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta).
+    """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
+    ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g.
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -95,6 +96,9 @@ def simulate(
             T, xi = base[1], base[2]
             w = 2 * math.pi / T
             return M * w * w * u + 2 * xi * M * w * ud
+        if kind == "bilinear":
+            q, T = base[1], base[2]
+            return M * (2 * math.pi / T) ** 2 * u + q * M * G * x[4]
         mu, R = base[1], base[2]
         return M * G / R * u + mu * M * G * x[4]
 
@@ -126,7 +130,7 @@ def simulate(
             force = np.array([-M * ag - m * s1 * thd**2 - F, -m * c1 * ag - m * G * s1])
             udd, thdd = np.linalg.solve(mass, force)
             out = [thd, thdd, x[3], udd]
-        if kind == "fps":
+        if kind in ("fps", "bilinear"):
             out.append(bouc_wen(x))
         return out
 

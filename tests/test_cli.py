@@ -487,3 +487,28 @@ def test_records_lists_a_suite(capsys):
     for i, (line, name) in enumerate(zip(lines, names), 1):
         assert line.startswith(f"{i:>3}  {name}  azimuth ")
     assert "azimuth 164  dt 0.01 s  4172 samples" in lines[6]
+
+
+def test_bilinear_base_takes_its_parameters(monkeypatch, tmp_path, capsys):
+    """--base bilinear builds the isolator from --strength, --period,
+    --yield-displacement and --mass-ratio; one out of range is one line."""
+    seen = []
+
+    class Result:
+        def summary(self):
+            return "fake response"
+
+    def simulate(block, base, *args, **kwargs):
+        seen.append(base)
+        return Result()
+
+    monkeypatch.setattr(jr, "simulate", simulate)
+    monkeypatch.setattr(plot, "response", lambda r: plt.figure(figsize=(2, 2)))
+    argv = ["simulate", "--base", "bilinear", "--strength", "0.08", "--period", "3"]
+    argv += ["--yield-displacement", "0.02", "--out", str(tmp_path / "r.png")]
+    main(argv)
+    assert seen[0] == jr.BilinearIsolator(0.08, 3.0, 0.02, 0.5)
+    capsys.readouterr()
+    argv = ["simulate", "--base", "bilinear", "--strength", "-1"]
+    assert main(argv + ["--out", str(tmp_path / "s.png")]) == 2
+    assert "`strength`" in _one_error_line(capsys.readouterr().err)

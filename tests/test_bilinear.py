@@ -1,0 +1,66 @@
+"""`BilinearIsolator`: the paper's general isolator, Eqs. (2.5)-(2.6), of which
+the friction pendulum is the case K = M g / R, Q = mu M g."""
+
+import numpy as np
+import pytest
+
+import jaxrock as jr
+from jaxrock._misc import GRAVITY
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+
+
+def _same_as(pendulum: jr.FrictionPendulum) -> jr.BilinearIsolator:
+    """The bilinear isolator of the pendulum's K, Q and Y."""
+    period = 2.0 * np.pi * np.sqrt(float(pendulum.radius) / GRAVITY)
+    return jr.BilinearIsolator(
+        float(pendulum.friction),
+        period,
+        float(pendulum.yield_displacement),
+        float(pendulum.mass_ratio),
+    )
+
+
+def test_a_friction_pendulum_is_the_bilinear_isolator_of_its_k_q_and_y():
+    pendulum = jr.FrictionPendulum(0.11, 2.24, 0.5)
+    bilinear = _same_as(pendulum)
+    assert float(bilinear.stiffness_per_mass) == pytest.approx(
+        float(pendulum.stiffness_per_mass), rel=1e-15
+    )
+    lam, size = np.array([2.5, 4.0, 5.5]), np.array([0.4, 1.0, 2.5])
+    maps = [
+        jr.behavior_map(lam, size, base, PULSE, progress=False)
+        for base in (pendulum, bilinear)
+    ]
+    np.testing.assert_array_equal(maps[0].outcome, maps[1].outcome)
+    np.testing.assert_array_equal(maps[0].impacts, maps[1].impacts)
+    assert len(set(maps[0].outcome.ravel())) == 3  # no rocking, rocking, overturning
+    for field in ("max_rotation", "max_base_displacement", "uplift_time"):
+        np.testing.assert_allclose(
+            getattr(maps[0], field), getattr(maps[1], field), rtol=1e-9, err_msg=field
+        )
+
+
+def test_the_force_is_k_u_plus_q_z():
+    base = jr.BilinearIsolator(0.06, 2.5, 0.015, 0.5)
+    state = base.initial_state().at[0].set(0.2)  # 0.2 m = 13 Y: z near 1
+    z = float(base.hysteretic(state))
+    assert 0.99 < z <= 1.0
+    k = (2.0 * np.pi / 2.5) ** 2
+    assert float(base.force(state)) == pytest.approx(k * 0.2 + 0.06 * GRAVITY * z)
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(strength=-0.01), "strength"),
+        (dict(period=0.0), "period"),
+        (dict(yield_displacement=0.0), "yield_displacement"),
+        (dict(mass_ratio=-1.0), "mass_ratio"),
+        (dict(beta=-2.0), "beta"),
+    ],
+)
+def test_parameters_out_of_range_are_named(kwargs, name):
+    args = dict(strength=0.06, period=2.5, yield_displacement=0.015, mass_ratio=0.5)
+    with pytest.raises(ValueError, match=f"`{name}`"):
+        jr.BilinearIsolator(**(args | kwargs))
