@@ -227,17 +227,51 @@ class Record(AbstractGroundMotion):
         factor = factor.reshape(factor.shape + (1,) * len(batch))
         return self._rebuilt(factor, **labels)
 
-    def scaled_to(self, *, pga=None, pgv=None) -> "Record":
-        """The record scaled to a peak ground acceleration `pga` (m/s^2) or
-        velocity `pgv` (m/s): exactly one of the two, a scalar or one per
-        record of a suite."""
-        if (pga is None) == (pgv is None):
-            raise ValueError("give exactly one of `pga` (m/s^2) and `pgv` (m/s)")
-        name, target = ("pga", pga) if pga is not None else ("pgv", pgv)
-        now = self.pga if pga is not None else self.pgv
+    def scaled_to(self, *, pga=None, pgv=None, sa=None) -> "Record":
+        """The record scaled to a peak ground acceleration `pga` (m/s^2), a
+        peak ground velocity `pgv` (m/s), or a spectral acceleration
+        `sa = (period, value)`: Sa(period s) at 5% damping = value (m/s^2,
+        `response_spectrum`). Exactly one of the three; a target is a scalar
+        or one per record of a suite.
+
+        Examples:
+            >>> import numpy as np, jaxrock as jr
+            >>> t = np.arange(0.0, 10.0, 0.01)
+            >>> rec = jr.Record(np.sin(2 * np.pi * t), 0.01)
+            >>> scaled = rec.scaled_to(sa=(1.0, 4.9))
+            >>> round(float(jr.intensity_measure(scaled, "sa:1.0")), 12)
+            4.9
+        """
+        given = [
+            k for k, v in (("pga", pga), ("pgv", pgv), ("sa", sa)) if v is not None
+        ]
+        if len(given) != 1:
+            raise ValueError(
+                "give exactly one of `pga` (m/s^2), `pgv` (m/s) and "
+                "`sa` = (period in s, Sa in m/s^2)"
+            )
+        name = given[0]
+        if name == "sa":
+            if not (isinstance(sa, (tuple, list)) and len(sa) == 2):
+                raise ValueError(f"`sa` must be (period in s, Sa in m/s^2), got {sa!r}")
+            period = np.asarray(sa[0], dtype=float)
+            if period.ndim or not (np.isfinite(period) and period > 0):
+                raise ValueError(
+                    "`sa`'s period must be one number, finite and > 0 (s), got "
+                    f"{sa[0]!r}"
+                )
+            target = sa[1]
+        else:
+            target = pga if name == "pga" else pgv
         target = np.asarray(target, dtype=float)
         if not np.all(np.isfinite(target) & (target > 0)):
             raise ValueError(f"`{name}` must be finite and > 0, got {target.tolist()}")
+        if name == "sa":
+            from ._response_spectrum import response_spectrum
+
+            now = response_spectrum(self, float(period)).pseudo_acceleration[..., 0]
+        else:
+            now = self.pga if name == "pga" else self.pgv
         if np.any(now <= 0):
             raise ValueError(f"a record with zero {name.upper()} cannot be scaled")
         factor = np.broadcast_to(target / now, now.shape)

@@ -117,3 +117,36 @@ def test_intensity_measure_names_bad_input(record, measure, options, message):
 def test_frequency_ratio_of_a_record_is_refused(record):
     with pytest.raises(ValueError, match="needs a pulse"):
         jr.intensity_measure(record, "frequency_ratio", slenderness=4.0, size=1.0)
+
+
+def test_records_scaled_to_a_spectral_acceleration(record):
+    other = jr.Record(np.asarray(record.samples)[::-1][:30], 0.01)
+    suite = jr.Record.stack([record, other])
+    scaled = suite.scaled_to(sa=(0.5, [2.0, 3.0]))
+    np.testing.assert_allclose(
+        jr.intensity_measure(scaled, "sa:0.5"), [2.0, 3.0], rtol=1e-14
+    )
+    one = record.scaled_to(sa=(0.5, 2.0))
+    assert float(jr.intensity_measure(one, "sa:0.5")) == pytest.approx(2.0, rel=1e-14)
+
+
+@pytest.mark.parametrize(
+    "sa, message",
+    [
+        ((0.0, 1.0), "`sa`'s period must be one number, finite and > 0"),
+        ((np.nan, 1.0), "`sa`'s period must be one number, finite and > 0"),
+        ((1.0, -2.0), "`sa` must be finite and > 0"),
+        ((1.0, np.nan), "`sa` must be finite and > 0"),
+        (1.0, r"`sa` must be \(period in s, Sa in m/s\^2\)"),
+    ],
+)
+def test_scaled_to_names_bad_targets(record, sa, message):
+    with pytest.raises(ValueError, match=message):
+        record.scaled_to(sa=sa)
+
+
+def test_a_record_with_zero_sa_cannot_be_scaled():
+    with pytest.raises(ValueError, match="a record with zero SA cannot be scaled"):
+        jr.Record(np.zeros(10), 0.01).scaled_to(sa=(1.0, 2.0))
+    with pytest.raises(ValueError, match="give exactly one of"):
+        jr.Record(np.ones(10), 0.01).scaled_to(pga=1.0, sa=(1.0, 2.0))
