@@ -69,6 +69,9 @@ from ._isolators import (
     BilinearIsolator as BilinearIsolator,
 )
 from ._isolators import (
+    ConicalRollingIsolator as ConicalRollingIsolator,
+)
+from ._isolators import (
     FixedBase as FixedBase,
 )
 from ._isolators import (
@@ -79,6 +82,9 @@ from ._isolators import (
 )
 from ._isolators import (
     LinearIsolator as LinearIsolator,
+)
+from ._isolators import (
+    SphericalRollingIsolator as SphericalRollingIsolator,
 )
 from ._labeled import Coordinates as Coordinates  # noqa: E402
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402

@@ -43,7 +43,8 @@ class AbstractIsolator(AbstractChecked):
     a rocking block's motion has a closed form once the ground is still
     (`behavior_map` then finishes it without steps). The bases are
     `FixedBase`, `LinearIsolator`, `FrictionPendulum`,
-    `IntegratedFrictionPendulum` and `BilinearIsolator`.
+    `IntegratedFrictionPendulum`, `BilinearIsolator`,
+    `SphericalRollingIsolator` and `ConicalRollingIsolator`.
 
     Examples:
         >>> import jaxrock as jr
@@ -293,25 +294,41 @@ class AbstractBoucWenIsolator(AbstractIsolator):
     def hysteretic(self, state):
         """The Bouc-Wen variable z."""
 
+    def restoring_force(self, u):
+        """The elastic part of the force over M (m/s^2): K u / M; the
+        derivative of `potential`."""
+        return self.stiffness_per_mass * u
+
+    def potential(self, u):
+        """The potential of `restoring_force` (m^2/s^2), 0 at u = 0."""
+        return 0.5 * self.stiffness_per_mass * u**2
+
+    def displacement_bound(self, energy):
+        """The largest |u| (m) at which `potential` is at most `energy`."""
+        return jnp.sqrt(2.0 * energy / self.stiffness_per_mass)
+
+    def restoring_bound(self, u_bound):
+        """The largest |`restoring_force`| (m/s^2) within |u| <= u_bound."""
+        return self.stiffness_per_mass * u_bound
+
     def force(self, state):
-        return self.stiffness_per_mass * state[
-            0
-        ] + self.strength_per_mass * self.hysteretic(state)
+        z = self.hysteretic(state)
+        return self.restoring_force(state[0]) + self.strength_per_mass * z
 
     def free_vibration_bounds(self, state):
-        # E = u'^2 / 2 + k u^2 / 2 + q Y z^2 / (2A) (k = K / M, q = Q / M)
+        # E = u'^2 / 2 + V(u) + q Y z^2 / (2A) (V: `potential`, q = Q / M)
         # cannot grow when gamma >= |beta| (Bouc-Wen is then dissipative);
-        # |u| <= sqrt(2 E / k), |z| <= sqrt(2 A E / (q Y)) and
-        # |F / M| <= k |u| + q |z|.
+        # V(u) <= E bounds |u|, |z| <= sqrt(2 A E / (q Y)) and
+        # |F / M| <= max |restoring force| + q |z|.
         u, u_dot, z = state[0], state[1], self.hysteretic(state)
-        k, q = self.stiffness_per_mass, self.strength_per_mass
+        q = self.strength_per_mass
         energy = (
             0.5 * u_dot**2
-            + 0.5 * k * u**2
+            + self.potential(u)
             + 0.5 * q * self.yield_displacement * z**2 / self.A
         )
         energy = jnp.maximum(energy, 1e-300)  # a finite derivative of sqrt at rest
-        u_bound = jnp.sqrt(2.0 * energy / k)
+        u_bound = self.displacement_bound(energy)
         # Starting from z = 0, |z| never exceeds z_max = (A / (gamma + beta))^(1/eta).
         z_max = (self.A / (self.gamma + self.beta)) ** (1.0 / self.eta)
         z_bound = jnp.minimum(
@@ -320,7 +337,7 @@ class AbstractBoucWenIsolator(AbstractIsolator):
                 2.0 * self.A * energy / jnp.maximum(q * self.yield_displacement, 1e-300)
             ),
         )
-        f_bound = k * u_bound + q * z_bound
+        f_bound = self.restoring_bound(u_bound) + q * z_bound
         dissipative = self.gamma >= jnp.abs(self.beta)
         return (
             jnp.where(dissipative, u_bound, jnp.inf),
@@ -554,6 +571,166 @@ class BilinearIsolator(AbstractClosedFormBoucWen):
     @property
     def strength_per_mass(self):
         return self.strength * GRAVITY
+
+
+class SphericalRollingIsolator(AbstractClosedFormBoucWen):
+    """Balls rolling in spherical dishes (a rolling isolation platform under
+    a display case or a statue): a rolling pendulum.
+
+    The platform rises on the dishes' profile as it moves, so the restoring
+    force is that of a pendulum, K = M g / R, R the radius of the path of
+    the balls' centres (for a ball of radius r in a dish of radius R_d,
+    R = R_d - r; with a dish above and below each ball the platform moves
+    twice as far, R = 2 (R_d - r)). The isolation period 2 pi sqrt(R / g)
+    does not depend on the amplitude. The rolling resistance is a small
+    friction, Q = mu_r M g (mu_r about 0.001-0.01 for steel balls on steel,
+    more on rubber-coated dishes), smoothed by the paper's Bouc-Wen z as a
+    friction pendulum's friction is (`AbstractClosedFormBoucWen`). This is
+    the one-degree-of-freedom reduction of the rolling isolation systems
+    that Harvey and Gavin model (balls in shallow bowls, whose profile h(u)
+    gives the restoring force M g dh/du), without the platform's rotation.
+
+    Args:
+        radius: R, the radius of the path of the balls' centres (m), > 0.
+        rolling_resistance: mu_r, the rolling resistance coefficient (-), >= 0.
+        mass_ratio: m / m_b, block mass over platform mass (-), > 0.
+        yield_displacement: Y (m), the travel over which the rolling resistance
+            builds up, > 0; default 5e-4.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> base = jr.SphericalRollingIsolator(radius=1.0, rolling_resistance=0.005,
+        ...                                    mass_ratio=1.0)
+        >>> base.describe()
+        'spherical rolling isolator (R = 1 m, mu_r = 0.005, mass ratio 1)'
+    """
+
+    radius: Float[Array, "..."] = parameter("radius", "m")
+    rolling_resistance: Float[Array, "..."] = parameter("rolling_resistance", "1")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
+    yield_displacement: Float[Array, "..."] = parameter(
+        "yield_displacement", "m", default=5e-4
+    )
+    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
+
+    def constraints(self):
+        return [
+            greater_than_zero("radius", self.radius),
+            at_least_zero("rolling_resistance", self.rolling_resistance),
+        ] + self.bouc_wen_constraints()
+
+    def describe(self):
+        return (
+            f"spherical rolling isolator (R = {describe_values(self.radius)} m, "
+            f"mu_r = {describe_values(self.rolling_resistance)}, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
+
+    @property
+    def stiffness_per_mass(self):
+        return GRAVITY / self.radius
+
+    @property
+    def strength_per_mass(self):
+        return self.rolling_resistance * GRAVITY
+
+
+class ConicalRollingIsolator(AbstractClosedFormBoucWen):
+    """Balls rolling in conical dishes (ball-in-cone isolators): a constant
+    restoring force.
+
+    On a cone of slope s (the tangent of its angle to the horizontal) the
+    restoring force is M g s, whatever the displacement: the isolated object
+    has no natural period of its own, and the time it takes to swing back
+    grows with the amplitude (a free oscillation of amplitude a lasts
+    4 sqrt(2 a / (g s)) without resistance), so no frequency of the ground
+    motion tunes to it. The force stays below M g (s + mu_r) at any
+    displacement: the cone caps the acceleration the object feels. The
+    cone's apex is rounded: the dish's height is s sqrt(u^2 + d^2) (a
+    hyperboloid whose apex has the radius of curvature d / s), so the force
+    M g s u / sqrt(u^2 + d^2) is smooth at u = 0. The rolling resistance is a
+    small friction, Q = mu_r M g, smoothed by the paper's Bouc-Wen z
+    (`AbstractClosedFormBoucWen`), as in `SphericalRollingIsolator`.
+
+    Args:
+        slope: s, the cone's slope (-), > 0 (about 0.02-0.1).
+        rolling_resistance: mu_r, the rolling resistance coefficient (-), >= 0.
+        mass_ratio: m / m_b, block mass over platform mass (-), > 0.
+        apex: d, the half-width of the rounded apex (m), > 0; default 1e-3.
+        yield_displacement: Y (m), > 0; default 5e-4.
+        A: the Bouc-Wen A (-), > 0; default 1.
+        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
+
+    Raises:
+        ValueError: a concrete parameter that is not a real number or lies
+            outside its range (the message names the parameter and the range).
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> base = jr.ConicalRollingIsolator(slope=0.05, rolling_resistance=0.005,
+        ...                                  mass_ratio=1.0)
+        >>> round(float(base.restoring_force(0.1)), 4)  # 10 cm out: ~ g s (m/s^2)
+        0.4905
+    """
+
+    slope: Float[Array, "..."] = parameter("slope", "1")
+    rolling_resistance: Float[Array, "..."] = parameter("rolling_resistance", "1")
+    mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
+    apex: Float[Array, "..."] = parameter("apex", "m", default=1e-3)
+    yield_displacement: Float[Array, "..."] = parameter(
+        "yield_displacement", "m", default=5e-4
+    )
+    A: Float[Array, "..."] = parameter("A", "1", default=1.0)
+    gamma: Float[Array, "..."] = parameter("gamma", "1", default=0.9)
+    beta: Float[Array, "..."] = parameter("beta", "1", default=0.1)
+
+    def constraints(self):
+        return [
+            greater_than_zero("slope", self.slope),
+            at_least_zero("rolling_resistance", self.rolling_resistance),
+            greater_than_zero("apex", self.apex),
+        ] + self.bouc_wen_constraints()
+
+    def describe(self):
+        return (
+            f"conical rolling isolator (slope {describe_values(self.slope)}, "
+            f"mu_r = {describe_values(self.rolling_resistance)}, "
+            f"mass ratio {describe_values(self.mass_ratio)})"
+        )
+
+    @property
+    def stiffness_per_mass(self):
+        """The stiffness at the rounded apex over M, g s / d (1/s^2)."""
+        return GRAVITY * self.slope / self.apex
+
+    @property
+    def strength_per_mass(self):
+        return self.rolling_resistance * GRAVITY
+
+    def restoring_force(self, u):
+        return GRAVITY * self.slope * u / jnp.sqrt(u * u + self.apex**2)
+
+    def potential(self, u):
+        # g s (sqrt(u^2 + d^2) - d), without cancellation near the apex.
+        root = jnp.sqrt(u * u + self.apex**2)
+        return GRAVITY * self.slope * u * u / (root + self.apex)
+
+    def displacement_bound(self, energy):
+        height = energy / (GRAVITY * self.slope) + self.apex
+        return jnp.sqrt(jnp.maximum(height**2 - self.apex**2, 0.0))
+
+    def restoring_bound(self, u_bound):
+        return self.restoring_force(u_bound)
 
 
 class IntegratedFrictionPendulum(AbstractFrictionPendulum):

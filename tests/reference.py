@@ -73,7 +73,9 @@ def simulate(
     breaks=None,
 ):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
-    ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g.
+    ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g,
+    ("cone", mu_r, (s, d), mbar, Y, A, g, b, eta): a rounded cone's M g s u /
+    sqrt(u^2 + d^2) + mu_r M g z.
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -99,6 +101,9 @@ def simulate(
         if kind == "bilinear":
             q, T = base[1], base[2]
             return M * (2 * math.pi / T) ** 2 * u + q * M * G * x[4]
+        if kind == "cone":  # height s sqrt(u^2 + d^2): force M g dh/du
+            mu, (s, d) = base[1], base[2]
+            return M * G * s * u / math.sqrt(u * u + d * d) + mu * M * G * x[4]
         mu, R = base[1], base[2]
         return M * G / R * u + mu * M * G * x[4]
 
@@ -130,7 +135,7 @@ def simulate(
             force = np.array([-M * ag - m * s1 * thd**2 - F, -m * c1 * ag - m * G * s1])
             udd, thdd = np.linalg.solve(mass, force)
             out = [thd, thdd, x[3], udd]
-        if kind in ("fps", "bilinear"):
+        if kind in ("fps", "bilinear", "cone"):
             out.append(bouc_wen(x))
         return out
 

@@ -216,3 +216,38 @@ def test_bilinear_isolator_matches_reference(case):
     np.testing.assert_allclose(
         float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
     )
+
+
+# A ball-in-cone isolator: slope, rolling resistance, m / m_b, apex half-width.
+CONE = (0.2, 0.005, 1.0, 1e-3)
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        ("Northridge JFA/SN", 6.0, 2.0, 1.0),  # rocking, 92 impacts
+        ("San Fernando PCD/SN", 6.0, 2.0, 1.0),  # overturning after 36 impacts
+        ("San Fernando PCD/SN", 3.0, 0.5, 1.0),  # no rocking
+    ],
+    ids=str,
+)
+def test_conical_rolling_isolator_matches_reference(case):
+    """A rounded cone's restoring force M g s u / sqrt(u^2 + d^2) and its
+    rolling resistance (the Bouc-Wen z in closed form), against the
+    reference's integrated z."""
+    name, lam, r, scale = case
+    motion, (acc, t_end, max_step) = _pulse(name, scale)
+    slope, mu, mass_ratio, apex = CONE
+    base = jr.ConicalRollingIsolator(slope, mu, mass_ratio, apex=apex)
+    ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
+    ref_base = ("cone", mu, (slope, apex), mass_ratio, 5e-4, 1.0, 0.9, 0.1, 2.0)
+    theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
+    assert int(ours.status) == jr.Status.SUCCESS
+    assert int(ours.outcome) == theirs["outcome"]
+    assert int(ours.impacts) == theirs["impacts"]
+    np.testing.assert_allclose(
+        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
+    )

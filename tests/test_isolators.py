@@ -1,6 +1,8 @@
-"""`BilinearIsolator`: the paper's general isolator, Eqs. (2.5)-(2.6), of which
-the friction pendulum is the case K = M g / R, Q = mu M g."""
+"""The Bouc-Wen isolators beside the friction pendulum: `BilinearIsolator`
+(the paper's general isolator, Eqs. (2.5)-(2.6), of which the friction
+pendulum is the case K = M g / R, Q = mu M g) and the rolling isolators."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -64,3 +66,47 @@ def test_parameters_out_of_range_are_named(kwargs, name):
     args = dict(strength=0.06, period=2.5, yield_displacement=0.015, mass_ratio=0.5)
     with pytest.raises(ValueError, match=f"`{name}`"):
         jr.BilinearIsolator(**(args | kwargs))
+
+
+def test_a_spherical_rolling_isolator_is_a_rolling_pendulum():
+    """Balls in spherical dishes: a friction pendulum whose friction is the
+    rolling resistance."""
+    sphere = jr.SphericalRollingIsolator(1.2, 0.005, 1.0)
+    pendulum = jr.FrictionPendulum(0.005, 1.2, 1.0)
+    lam, size = np.array([3.0, 5.0]), np.array([0.5, 2.0])
+    maps = [
+        jr.behavior_map(lam, size, base, PULSE, progress=False)
+        for base in (pendulum, sphere)
+    ]
+    np.testing.assert_array_equal(maps[0].outcome, maps[1].outcome)
+    np.testing.assert_allclose(maps[0].max_rotation, maps[1].max_rotation, rtol=1e-9)
+    np.testing.assert_allclose(
+        maps[0].max_base_displacement, maps[1].max_base_displacement, rtol=1e-9
+    )
+
+
+def test_a_cones_force_is_its_potentials_slope_and_never_exceeds_g_s():
+    cone = jr.ConicalRollingIsolator(0.08, 0.004, 1.0, apex=2e-3)
+    u = np.array([-0.5, -0.01, -1e-4, 0.0, 3e-4, 0.002, 0.3, 2.0])
+    slope = jax.vmap(jax.grad(cone.potential))(u)
+    np.testing.assert_allclose(slope, cone.restoring_force(u), rtol=1e-12, atol=1e-15)
+    assert np.all(np.abs(cone.restoring_force(u)) < GRAVITY * 0.08)
+    assert float(cone.restoring_force(2.0)) == pytest.approx(GRAVITY * 0.08, rel=1e-6)
+    # The bound of |u| at a potential energy is where that energy is reached.
+    np.testing.assert_allclose(
+        cone.displacement_bound(cone.potential(u)), np.abs(u), rtol=1e-9, atol=1e-12
+    )
+
+
+@pytest.mark.parametrize(
+    "make, name",
+    [
+        (lambda: jr.SphericalRollingIsolator(0.0, 0.005, 1.0), "radius"),
+        (lambda: jr.SphericalRollingIsolator(1.0, -0.1, 1.0), "rolling_resistance"),
+        (lambda: jr.ConicalRollingIsolator(0.0, 0.005, 1.0), "slope"),
+        (lambda: jr.ConicalRollingIsolator(0.1, 0.005, 1.0, apex=0.0), "apex"),
+    ],
+)
+def test_rolling_isolator_parameters_out_of_range_are_named(make, name):
+    with pytest.raises(ValueError, match=f"`{name}`"):
+        make()
