@@ -214,14 +214,22 @@ def _add_base_options(q, out: str, compare: str) -> None:
     help of --base."""
     q.add_argument(
         "--base",
-        choices=["fixed", "linear", "fps", "bilinear", "sphere", "cone"],
+        choices=[
+            "fixed",
+            "linear",
+            "fps",
+            "bilinear",
+            "rolling-sphere",
+            "rolling-cone",
+        ],
         default="linear",
         help="base to analyse: fixed (no isolation), linear (linear isolator: "
         "--period, --damping, --mass-ratio), fps (friction pendulum: "
         "--friction, --radius, --mass-ratio), bilinear (bilinear isolator: "
-        "--strength, --period, --yield-displacement, --mass-ratio), sphere (balls "
-        "in spherical dishes: --radius, --rolling-resistance, --mass-ratio) or "
-        "cone (balls in conical dishes: --slope, --rolling-resistance, "
+        "--strength, --period, --yield-displacement, --mass-ratio), "
+        "rolling-sphere (balls in spherical dishes: --radius, "
+        "--rolling-resistance, --mass-ratio) or "
+        "rolling-cone (balls in conical dishes: --slope, --rolling-resistance, "
         f"--mass-ratio){compare}",
     )
     q.add_argument(
@@ -246,9 +254,11 @@ def _add_base_options(q, out: str, compare: str) -> None:
         "--rolling-resistance",
         type=float,
         default=0.005,
-        help="mu_r, rolling resistance coefficient, sphere and cone",
+        help="mu_r, rolling resistance coefficient, rolling-sphere and rolling-cone",
     )
-    q.add_argument("--slope", type=float, default=0.1, help="s, the cone's slope, cone")
+    q.add_argument(
+        "--slope", type=float, default=0.1, help="s, the cone's slope, rolling-cone"
+    )
     q.add_argument(
         "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
     )
@@ -259,7 +269,7 @@ def _add_base_options(q, out: str, compare: str) -> None:
         "--radius",
         type=float,
         default=2.24,
-        help="R, radius of curvature (m), fps; of the balls' path (m), sphere",
+        help="R, radius of curvature (m), fps; of the balls' path (m), rolling-sphere",
     )
     q.add_argument(
         "--mass-ratio",
@@ -631,9 +641,9 @@ def _base(a):
         return jr.BilinearIsolator(
             a.strength, a.period, a.yield_displacement, a.mass_ratio
         )
-    if a.base == "sphere":
+    if a.base == "rolling-sphere":
         return jr.SphericalRollingIsolator(a.radius, a.rolling_resistance, a.mass_ratio)
-    if a.base == "cone":
+    if a.base == "rolling-cone":
         return jr.ConicalRollingIsolator(a.slope, a.rolling_resistance, a.mass_ratio)
     return jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
 

@@ -491,7 +491,7 @@ def test_records_lists_a_suite(capsys):
 
 def test_bilinear_base_takes_its_parameters(monkeypatch, tmp_path, capsys):
     """--base bilinear builds the isolator from --strength, --period,
-    --yield-displacement and --mass-ratio (sphere and cone theirs); one out of
+    --yield-displacement and --mass-ratio (the rolling isolators theirs); one out of
     range is one line."""
     seen = []
 
@@ -510,8 +510,8 @@ def test_bilinear_base_takes_its_parameters(monkeypatch, tmp_path, capsys):
     main(argv)
     assert seen[0] == jr.BilinearIsolator(0.08, 3.0, 0.02, 0.5)
     for base, expected in [
-        ("sphere", jr.SphericalRollingIsolator(2.24, 0.005, 0.5)),
-        ("cone", jr.ConicalRollingIsolator(0.1, 0.005, 0.5)),
+        ("rolling-sphere", jr.SphericalRollingIsolator(2.24, 0.005, 0.5)),
+        ("rolling-cone", jr.ConicalRollingIsolator(0.1, 0.005, 0.5)),
     ]:
         main(["simulate", "--base", base, "--out", str(tmp_path / "r.png")])
         assert seen[-1] == expected
