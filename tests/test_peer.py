@@ -16,13 +16,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import reference as ref
-from test_reference import BASES, CASES, TABLE
+from test_reference import BASES as REFERENCE_BASES
+from test_reference import CASES, TABLE
 
 pytest.importorskip("numba", reason="the peer is written in Numba (bench extra)")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import peer  # noqa: E402
 
 TIGHT = dict(rtol=1e-10, atol=1e-12)
+# The bases the peer models.
+BASES = {k: REFERENCE_BASES[k] for k in ("fixed", "linear", "fps")}
 
 
 def _check(ours, theirs, where, impacts=True):
