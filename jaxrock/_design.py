@@ -378,8 +378,9 @@ def _value_and_grad_of(make_base, scale: "_Scaling", problem: tuple, x: dict):
     base = base_at(x)
     if not isinstance(base, AbstractIsolator) or base.n_states == 0:
         raise ValueError(
-            "`make_base` must return an isolated base (LinearIsolator or "
-            f"FrictionPendulum) built from the parameters, got {type(base).__name__}"
+            "`make_base` must return an isolated base (LinearIsolator, "
+            "FrictionPendulum, BilinearIsolator, ...) built from the parameters, "
+            f"got {type(base).__name__}"
         )
     names = scale.names
     units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]

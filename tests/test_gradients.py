@@ -47,7 +47,19 @@ def _linear_damping(damping):
     )
 
 
+def _bilinear_period(period):
+    base = jr.BilinearIsolator(0.06, period, 0.015, 0.5)
+    return jr.simulate(jr.Block(3.0, 0.5), base, PULSE, **TOL)
+
+
+def _bilinear_strength(strength):
+    base = jr.BilinearIsolator(strength, 2.5, 0.015, 0.5)
+    return jr.simulate(jr.Block(3.0, 0.5), base, PULSE, **TOL)
+
+
 FUNCTIONS = {
+    "bilinear-period": _bilinear_period,
+    "bilinear-strength": _bilinear_strength,
     "linear-period": _linear,
     "linear-damping": _linear_damping,
     "fps-friction": _fps,
@@ -79,6 +91,8 @@ CASES = {
     # that step (measured: 5.8e-5 relative; the differences converge to 3e-8
     # for h from 1e-3 to 1e-5, so the gap is in the derivative, not in them).
     "fps-friction": (_fps, 0.11, "max_rotation", 1e-4),
+    "bilinear-period": (_bilinear_period, 2.5, "max_rotation", 1e-4),
+    "bilinear-strength": (_bilinear_strength, 0.06, "max_rotation", 1e-4),
     "fixed-amplitude": (_fixed, 1.15, "max_rotation", 1e-5),
 }
 
