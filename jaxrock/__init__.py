@@ -89,6 +89,8 @@ from ._isolators import (
 from ._labeled import Coordinates as Coordinates  # noqa: E402
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map
+from ._misc import Constraint as Constraint  # noqa: E402
+from ._misc import parameter as parameter
 from ._record import (
     Record as Record,
 )

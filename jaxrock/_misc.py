@@ -71,7 +71,14 @@ def grid_axis(name: str, values) -> np.ndarray:
 def parameter(name: str, unit: str | None = None, **kwargs):
     """A physical parameter's field: a float array leaf, refused (naming it)
     unless real-valued. `unit` (SI, "1" if dimensionless) marks the parameters
-    that label results (the coordinates of `to_xarray`)."""
+    that label results (the coordinates of `to_xarray`); `kwargs` go to
+    `equinox.field` (e.g. `default=`).
+
+    Examples:
+        >>> import jax.numpy as jnp, jaxrock as jr
+        >>> class Spring(jr.AbstractIsolator):  # (abstract: a field's example)
+        ...     period: jnp.ndarray = jr.parameter("period", "s")
+    """
     metadata = {} if unit is None else {"unit": unit}
     return eqx.field(
         converter=lambda x: real_number(name, x), metadata=metadata, **kwargs
@@ -79,7 +86,17 @@ def parameter(name: str, unit: str | None = None, **kwargs):
 
 
 class Constraint(NamedTuple):
-    """A parameter's allowed range: `ok` is elementwise on NumPy or JAX arrays."""
+    """A parameter's allowed range: `ok` is elementwise on NumPy or JAX arrays,
+    `allowed` says the range in words ("finite and > 0"). A module's
+    `constraints()` lists them: a concrete value out of range is a
+    `ValueError` naming `name` and `allowed`, a traced one an invalid input.
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> c = jr.Constraint("period", 2.0, lambda v: v > 0, "finite and > 0")
+        >>> bool(c.ok(c.value))
+        True
+    """
 
     name: str
     value: Any

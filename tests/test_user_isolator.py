@@ -1,0 +1,75 @@
+"""The isolator of docs/isolators.md, written outside jaxrock: its example
+runs as printed, and the class goes through simulate, maps and jacfwd."""
+
+import re
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+import jaxrock as jr
+
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "isolators.md"
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+
+
+@pytest.fixture(scope="module")
+def page():
+    """The page's code blocks, run in order in one namespace."""
+    blocks = re.findall(r"```python\n(.*?)```", PAGE.read_text(), flags=re.S)
+    assert len(blocks) == 2
+    namespace = {}
+    for block in blocks:
+        exec(compile(block, str(PAGE), "exec"), namespace)
+    return namespace
+
+
+def test_a_spring_that_never_hardens_is_the_linear_isolator(page):
+    soft = page["HardeningIsolator"](2.0, 0.35, 1e6, 0.5)
+    for lam, r in [(3.0, 0.5), (4.0, 1.0)]:
+        ours = jr.simulate(jr.Block(lam, r), soft, PULSE)
+        linear = jr.simulate(jr.Block(lam, r), jr.LinearIsolator(2.0, 0.35, 0.5), PULSE)
+        assert int(ours.outcome) == int(linear.outcome)
+        assert int(ours.impacts) == int(linear.impacts)
+        np.testing.assert_allclose(ours.max_rotation, linear.max_rotation, rtol=1e-9)
+
+
+def test_a_batch_of_the_users_isolators_is_one_map(page):
+    bases = page["HardeningIsolator"](2.0, 0.35, np.array([0.1, 0.3, 1e6]), 0.5)
+    bm = jr.behavior_map([2.0, 2.5, 4.0], [0.4, 2.0], bases, PULSE, progress=False)
+    assert bm.outcome.shape == (3, 3, 2)
+    np.testing.assert_array_equal(bm.select(1).outcome, page["bm"].outcome)
+    assert bm.coordinates.coords["hardening"][0] == ("base",)
+    # A stiffer spring moves the base less.
+    assert np.all(bm.max_base_displacement[0] <= bm.max_base_displacement[2])
+
+
+def test_its_derivative_matches_central_differences(page):
+    f, h = page["max_rotation"], 1e-5 * 0.3
+    lo, hi = float(f(0.3 - h)), float(f(0.3 + h))
+    derivative = float(jax.jacfwd(f)(0.3))
+    assert abs(hi - lo) > 0
+    assert derivative == pytest.approx((hi - lo) / (2 * h), rel=1e-4)
+
+
+def test_out_of_range_and_missing_methods_are_named(page):
+    with pytest.raises(ValueError, match="`hardening` must be finite and > 0"):
+        page["HardeningIsolator"](2.0, 0.35, 0.0, 0.5)
+
+    class NoForce(jr.AbstractIsolator):
+        n_states = 2
+
+        def initial_state(self):
+            return np.zeros(2)
+
+        def rates(self, state, u_ddot):
+            return state
+
+        block_mass_fraction = 0.5
+
+        def free_vibration_bounds(self, state):
+            return np.inf, np.inf
+
+    with pytest.raises(TypeError, match="force"):
+        NoForce()
