@@ -278,14 +278,27 @@ def test_free_rocking_time_from_apex_matches_an_ode(lam, size, apex, to):
     assert float(time_from_apex(p, x, k, x - k)) == pytest.approx(expected, rel=1e-10)
 
 
+def _bouc_wen_bases(A, gamma, beta, Y):
+    """Every isolator with the closed-form z, of these Bouc-Wen constants."""
+    bw = dict(yield_displacement=Y, A=A, gamma=gamma, beta=beta)
+    return [
+        jr.FrictionPendulum(0.11, 2.24, 0.5, **bw),
+        jr.BilinearIsolator(0.06, 2.5, mass_ratio=0.5, **bw),
+        jr.SphericalRollingIsolator(1.5, 0.005, 0.5, **bw),
+        jr.ConicalRollingIsolator(0.1, 0.005, 0.5, apex=1e-3, **bw),
+    ]
+
+
+@pytest.mark.parametrize("kind", range(4), ids=["fps", "bilinear", "sphere", "cone"])
 @pytest.mark.parametrize(
     "A, gamma, beta, Y",
     [(1.0, 0.9, 0.1, 5e-4), (1.2, 0.3, 0.7, 1e-3)],  # paper's; |z| shrinking like tanh
 )
-def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
+def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y, kind):
     """eta = 2: z explicit in u along each monotone stretch, restarted at each
-    reversal of u', against Bouc-Wen's ODE integrated along the same u(t)."""
-    base = jr.FrictionPendulum(0.11, 2.24, 0.5, Y, A, gamma, beta)
+    reversal of u', against Bouc-Wen's ODE integrated along the same u(t); the
+    force's loop F / M = restoring force + (Q / M) z with it."""
+    base = _bouc_wen_bases(A, gamma, beta, Y)[kind]
     assert base.n_states == 5
 
     def u(t):  # reversals of uneven amplitude, some within a few Y
@@ -301,9 +314,10 @@ def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
     ts = np.linspace(0.0, 3.0, 601)
     ode = solve_ivp(z_dot, (0, 3), [0.0], t_eval=ts, rtol=1e-12, atol=1e-14).y[0]
     hysteretic = jax.jit(lambda s: base.hysteretic(s))
+    force = jax.jit(lambda s: base.force(s))
     turn = jax.jit(lambda s: base.at_transition(s, jnp.asarray(True)))
     state = np.zeros(5)
-    closed, reversals = [], 0
+    closed, forces, reversals = [], [], 0
     for a, b in zip(np.r_[ts[0], ts[:-1]], ts):
         if u_dot(a) * u_dot(b) < 0:  # a reversal: the memory restarts there
             r = brentq(u_dot, a, b, xtol=1e-15)
@@ -311,9 +325,12 @@ def test_bouc_wen_z_in_closed_form_equals_the_ode(A, gamma, beta, Y):
             reversals += 1
         state[:2] = u(b), u_dot(b)
         closed.append(float(hysteretic(jnp.asarray(state))))
+        forces.append(float(force(jnp.asarray(state))))
     assert reversals >= 6
     assert np.max(np.abs(ode)) > 0.9  # z saturates, and comes back
     np.testing.assert_allclose(closed, ode, atol=1e-9)
+    loop = np.asarray(base.restoring_force(u(ts))) + base.strength_per_mass * ode
+    np.testing.assert_allclose(forces, loop, rtol=1e-9, atol=1e-8)  # z: 1e-9
 
 
 @pytest.mark.parametrize(
