@@ -10,7 +10,7 @@ from jax.scipy.stats import norm
 
 from ._ground import AbstractGroundMotion
 from ._intensity import intensity_measure, measure_attrs, parse_measure
-from ._isolators import AbstractIsolator
+from ._isolators import AbstractIsolator, FixedBase
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
 from ._misc import grid_axis, positive, unbatched
@@ -179,6 +179,105 @@ def _newton(x, k, n):
     return p
 
 
+# The damage states by kind: the block's, from the least to the most severe
+# (uplift < rotation:X < overturning), and the isolator's (displacement:D).
+DAMAGE_STATES = ("uplift", "rotation:X", "overturning", "displacement:D")
+_LADDER = {"uplift": "block", "rotation": "block", "overturning": "block"}
+_LADDER["displacement"] = "isolator"
+
+
+def _number_text(value: float) -> str:
+    """A threshold as written in a state's name: 0.5, 1, 0.123456789."""
+    return np.format_float_positional(value, trim="-")
+
+
+def _damage_state(text) -> tuple[str, float]:
+    """(kind, threshold) of one damage state's name; `ValueError` naming
+    `damage_states` for anything else."""
+    allowed = (
+        "`damage_states` must be names of the form 'uplift', 'rotation:X' "
+        "(max |theta| / alpha > X), 'overturning' or 'displacement:D' "
+        "(max |u| > D m), X and D finite and > 0"
+    )
+    if not isinstance(text, str):
+        raise ValueError(f"{allowed}, got {text!r}")
+    if text in ("uplift", "overturning"):
+        return text, 0.0 if text == "uplift" else float("inf")
+    kind, _, number = text.partition(":")
+    if kind not in ("rotation", "displacement"):
+        raise ValueError(f"{allowed}, got {text!r}")
+    try:
+        threshold = float(number)
+    except ValueError:
+        raise ValueError(f"{allowed}, got {text!r}") from None
+    if not (np.isfinite(threshold) and threshold > 0):
+        raise ValueError(f"{allowed}, got {text!r}")
+    return kind, threshold
+
+
+def check_damage_states(states, slenderness, base) -> tuple[tuple, tuple]:
+    """The canonical names and the (kind, threshold) of `states`, checked:
+    each a name of `DAMAGE_STATES`, the block's states from the least to the
+    most severe and the isolator's capacities increasing (each state implies
+    the one before it of its kind), a rotation below pi / (2 alpha), a
+    displacement only on an isolated base."""
+    if states is None:
+        return (), ()
+    if isinstance(states, str):
+        states = (states,)
+    try:
+        states = tuple(states)
+    except TypeError:
+        raise ValueError(
+            "`damage_states` must be a sequence of names such as 'uplift', "
+            f"'rotation:0.5', 'overturning', got {states!r}"
+        ) from None
+    parsed = [_damage_state(s) for s in states]
+    names = tuple(
+        kind if kind in ("uplift", "overturning") else f"{kind}:{_number_text(t)}"
+        for kind, t in parsed
+    )
+    alpha = float(np.arctan(1.0 / slenderness))
+    last = {}
+    for name, (kind, threshold) in zip(names, parsed):
+        ladder = _LADDER[kind]
+        if ladder in last and threshold <= last[ladder][1]:
+            raise ValueError(
+                "`damage_states` must nest: each state of the block (uplift, "
+                "rotation:X, overturning) more severe than the one before it, "
+                "each displacement:D larger, and none twice; got "
+                f"{name!r} after {last[ladder][0]!r}"
+            )
+        last[ladder] = (name, threshold)
+        if kind == "rotation" and threshold >= 0.5 * np.pi / alpha:
+            raise ValueError(
+                f"`damage_states`: {name!r} is beyond the block's reach: "
+                "max |theta| / alpha is at most pi / (2 alpha) = "
+                f"{0.5 * np.pi / alpha:.4g} (on the ground), which is 'overturning'"
+            )
+        if kind == "displacement" and isinstance(base, FixedBase):
+            raise ValueError(
+                f"`damage_states`: {name!r} is a displacement of the isolator, "
+                "and a FixedBase does not move"
+            )
+    return names, tuple(parsed)
+
+
+def _exceeded(parsed, outcome, max_rotation, max_base_displacement):
+    """Whether each analysis (rows) reached each damage state (columns)."""
+    columns = []
+    for kind, threshold in parsed:
+        if kind == "uplift":
+            columns.append(outcome != Outcome.NO_ROCKING)
+        elif kind == "overturning":
+            columns.append(outcome == Outcome.OVERTURNED)
+        elif kind == "rotation":
+            columns.append(max_rotation > threshold)
+        else:
+            columns.append(max_base_displacement > threshold)
+    return np.stack(columns, axis=-1) if columns else np.zeros((outcome.size, 0), bool)
+
+
 class Fragility(eqx.Module):
     """The results of `fragility`: one row per analysis, and lognormal fits.
 
@@ -218,6 +317,16 @@ class Fragility(eqx.Module):
             and the motions (before scaling) along them (`Coordinates`).
         motion_index: the motion of the ensemble (before scaling) of each row.
         motion_names: the records' names of a suite; None otherwise.
+        max_rotation: max |theta| / alpha of each analysis (-), pi / (2 alpha)
+            where the block overturned.
+        max_base_displacement: max |u| of each analysis (m); 0 on a fixed base.
+        damage_states: the names of the damage states (`fragility`), e.g.
+            ("uplift", "rotation:0.5", "overturning"); () when none were asked.
+        exceeded: whether each analysis reached each damage state (bool),
+            shape (rows, damage states).
+        median_damage: the median of each damage state's fit, in the units of
+            `im` (NaN and 0 as `median_rocking`), shape (damage states,).
+        beta_damage: each damage state's beta (-), shape (damage states,).
 
     Examples:
         >>> import jaxrock as jr
@@ -228,6 +337,15 @@ class Fragility(eqx.Module):
         array([0.87, 1.74, 2.61, 3.48, 4.35, 5.22])
         >>> frag.rocked.astype(int), frag.overturned.astype(int)
         (array([0, 0, 1, 1, 1, 1]), array([0, 0, 0, 1, 1, 1]))
+        >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
+        ...                     scales=[0.2, 0.4, 0.6, 0.8, 1.0, 1.2],
+        ...                     damage_states=["uplift", "rotation:0.5", "overturning"])
+        >>> frag.exceeded.astype(int).T
+        array([[0, 0, 1, 1, 1, 1],
+               [0, 0, 0, 1, 1, 1],
+               [0, 0, 0, 1, 1, 1]])
+        >>> frag.median_damage.round(2)  # separated outcomes: steps (beta 0)
+        array([2.13, 3.01, 3.01])
     """
 
     im: np.ndarray
@@ -249,19 +367,45 @@ class Fragility(eqx.Module):
     # The motion (before scaling) of each row, and the records' names.
     motion_index: np.ndarray | None = None
     motion_names: tuple | None = None
+    max_rotation: np.ndarray | None = None
+    max_base_displacement: np.ndarray | None = None
+    damage_states: tuple = ()
+    exceeded: np.ndarray | None = None
+    median_damage: np.ndarray | None = None
+    beta_damage: np.ndarray | None = None
 
     def probability(self, im, which: str = "overturning"):
-        """The fitted lognormal P(rocking or overturning | IM).
+        """The fitted lognormal P(state | IM) of `which`: "rocking",
+        "overturning", or one of `damage_states` (e.g. "rotation:0.5").
 
         With beta = 0 (separated outcomes, see `fit_lognormal`) the curve is
         its limit, a step: 0 below the median, 1 above it and 1/2 at it.
         """
-        median = getattr(self, f"median_{which}")
-        beta = getattr(self, f"beta_{which}")
+        if which in ("rocking", "overturning"):
+            median = getattr(self, f"median_{which}")
+            beta = getattr(self, f"beta_{which}")
+        else:
+            index = self._state_index(which)
+            median, beta = self.median_damage[index], self.beta_damage[index]
         im = np.asarray(im)
         if beta == 0:
             return np.where(im > median, 1.0, np.where(im < median, 0.0, 0.5))
         return np.asarray(norm.cdf(np.log(im / median) / beta))
+
+    def _state_index(self, which) -> int:
+        """The column of the damage state named `which` (its name as
+        `fragility` writes it or as given: "rotation:0.50" is "rotation:0.5")."""
+        try:
+            kind, threshold = _damage_state(which)
+        except ValueError:
+            kind = None
+        for i, name in enumerate(self.damage_states):
+            if kind is not None and _damage_state(name) == (kind, threshold):
+                return i
+        raise ValueError(
+            "`which` must be 'rocking', 'overturning' or one of the damage states "
+            f"{list(self.damage_states)}, got {which!r}"
+        )
 
     def to_xarray(self):
         """The analyses as an `xarray.Dataset` over the scales and the motions.
@@ -275,7 +419,11 @@ class Fragility(eqx.Module):
         `size`, m). Data variables: `im` (in the units of `measure`),
         `rocked`, `overturned` and `status` per analysis, and the fits
         (`median_rocking` and `median_overturning` in the units of `im`,
-        `beta_rocking` and `beta_overturning`, -). Attributes: `measure`,
+        `beta_rocking` and `beta_overturning`, -), `max_rotation` (-) and
+        `max_base_displacement` (m) per analysis. With `damage_states`, a
+        dimension "damage_state" labelled by their names, `exceeded` over the
+        analyses' dimensions and it, and the fits `median_damage` (in the
+        units of `im`) and `beta_damage` (-) along it. Attributes: `measure`,
         `base`, `motion` and `seconds` (s).
 
         Needs xarray (`pip install "jaxrock[xarray]"`).
@@ -288,6 +436,12 @@ class Fragility(eqx.Module):
             >>> ds = frag.to_xarray()
             >>> ds.im.dims, bool(ds.overturned.sel(scale=1.0))
             (('scale',), True)
+            >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
+            ...                     scales=[0.2, 0.4, 0.6, 0.8, 1.0, 1.2],
+            ...                     damage_states=["rotation:0.5", "overturning"])
+            >>> ds = frag.to_xarray()
+            >>> ds.exceeded.dims, ds.damage_state.values.tolist()
+            (('scale', 'damage_state'), ['rotation:0.5', 'overturning'])
         """
         dims, coords = self.coordinates.dims, dict(self.coordinates.coords)
         if self.scales is not None:
@@ -312,6 +466,22 @@ class Fragility(eqx.Module):
             ),
             "status": (dims, self.status.reshape(shape)),
         }
+        if self.max_rotation is not None:
+            rows["max_rotation"] = (dims, self.max_rotation.reshape(shape))
+            rows["max_base_displacement"] = (
+                dims,
+                self.max_base_displacement.reshape(shape),
+            )
+        if self.damage_states:
+            states = len(self.damage_states)
+            coords["damage_state"] = (("damage_state",), list(self.damage_states), {})
+            rows["exceeded"] = (
+                dims + ("damage_state",),
+                self.exceeded.reshape(shape + (states,)),
+                {"long_name": "damage state reached"},
+            )
+            fit["median_damage"] = (("damage_state",), self.median_damage, im)
+            fit["beta_damage"] = (("damage_state",), self.beta_damage, {"units": "1"})
         attrs = dict(
             measure=self.measure,
             base=self.base,
@@ -343,6 +513,7 @@ def fragility(
     *,
     scales=None,
     measure: str = "pga",
+    damage_states=None,
     **map_options,
 ) -> Fragility:
     """Rocking and overturning of one block over an ensemble of motions.
@@ -357,7 +528,13 @@ def fragility(
     "cav" (m/s), "d5_95" (s), "pga_ratio", "pgv_ratio" or
     "frequency_ratio". P(rocking) and P(overturning)
     are fitted as lognormal curves by maximum likelihood over the analyses
-    whose status is SUCCESS.
+    whose status is SUCCESS, and so is each of `damage_states`, a ladder of
+    states of increasing severity defined on the results: "uplift" (the block
+    rocked), "rotation:X" (max |theta| / alpha > X, the block's rotation as a
+    fraction of its critical angle alpha), "overturning", and the isolator's
+    "displacement:D" (max |u| > D m, a capacity). The block's states are
+    given from the least to the most severe, an isolator's capacities in
+    increasing order: each state implies the one before it of its kind.
 
     Args:
         slenderness: the block's lambda = h / b.
@@ -368,6 +545,9 @@ def fragility(
         scales: amplitude factors (> 0) applied to every motion; None: the
             motions as given.
         measure: a name of `intensity_measure`; default "pga".
+        damage_states: names of damage states (above), e.g.
+            ["uplift", "rotation:0.5", "overturning", "displacement:0.2"];
+            None: none.
         **map_options: passed to `behavior_map` (rtol, duration, store,
             executor, ...).
 
@@ -377,8 +557,10 @@ def fragility(
 
     Raises:
         ValueError: an unknown measure, a batch of bases, `scales` not all
-            > 0, a single unscaled motion, or a motion that does not move the
-            ground.
+            > 0, a single unscaled motion, a motion that does not move the
+            ground, or `damage_states` that are malformed, do not nest, ask
+            for a rotation of pi / (2 alpha) or more, or for the displacement
+            of a fixed base.
 
     Examples:
         >>> import jaxrock as jr
@@ -389,6 +571,8 @@ def fragility(
     parse_measure(measure)
     check_base_and_motion(base, motions)
     unbatched("base", base, "fragility")
+    positive("slenderness", slenderness)
+    states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
     names = motions.names()
     labels = coordinates(base, motions)
@@ -409,6 +593,10 @@ def fragility(
     overturned = outcome == Outcome.OVERTURNED
     med_r, beta_r = fit_lognormal(im[ok], rocked[ok])
     med_o, beta_o = fit_lognormal(im[ok], overturned[ok])
+    max_rotation = bm.max_rotation.reshape(-1)
+    max_u = bm.max_base_displacement.reshape(-1)
+    exceeded = _exceeded(parsed, outcome, max_rotation, max_u)
+    fits = np.array([fit_lognormal(im[ok], e[ok]) for e in exceeded.T]).reshape(-1, 2)
     return Fragility(
         im=np.asarray(im),
         rocked=rocked,
@@ -428,4 +616,10 @@ def fragility(
         coordinates=labels,
         motion_index=np.arange(outcome.size) % members,
         motion_names=names,
+        max_rotation=max_rotation,
+        max_base_displacement=max_u,
+        damage_states=states,
+        exceeded=exceeded,
+        median_damage=fits[:, 0],
+        beta_damage=fits[:, 1],
     )

@@ -92,6 +92,24 @@ def _measure(text: str) -> str:
     )
 
 
+def _damage_state(text: str) -> str:
+    """A damage state's name: uplift, overturning, rotation:X or
+    displacement:D with X, D > 0 (jaxrock.fragility checks that they nest)."""
+    if text in ("uplift", "overturning"):
+        return text
+    kind, _, number = text.partition(":")
+    try:
+        value = float(number)
+    except ValueError:
+        value = float("nan")
+    if kind in ("rotation", "displacement") and 0 < value < float("inf"):
+        return text
+    raise argparse.ArgumentTypeError(
+        "must be uplift, rotation:X (max |theta| / alpha > X), overturning or "
+        f"displacement:D (max |u| > D m), X and D > 0, got {text!r}"
+    )
+
+
 def _range(text: str):
     """START:STOP:N -> N values from START to STOP inclusive."""
     import numpy as np
@@ -403,6 +421,17 @@ def _add_fragility(sub) -> None:
         "period T s, 5%% damping, m/s^2), arias (m/s), cav (m/s), d5_95 (s), "
         "pga_ratio = PGA / (g tan alpha), pgv_ratio = PGV p / (g tan alpha), "
         "frequency_ratio = omega_p / p (a pulse)",
+    )
+    f.add_argument(
+        "--damage-state",
+        dest="damage_states",
+        action="append",
+        type=_damage_state,
+        metavar="STATE",
+        help="a damage state with its own fitted curve, repeated for several, "
+        "from the least to the most severe: uplift, rotation:X (max |theta| / "
+        "alpha > X), overturning, displacement:D (the isolator's max |u| > D "
+        "m); without it, rocking and overturning",
     )
 
 
@@ -832,6 +861,9 @@ def _run_fragility(a) -> int:
     out, motion, base, name = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot
+    from jaxrock._fragility import check_damage_states
+
+    check_damage_states(a.damage_states, a.slenderness, base)
 
     frag = jr.fragility(
         a.slenderness,
@@ -840,6 +872,7 @@ def _run_fragility(a) -> int:
         motion,
         scales=a.scales,
         measure=a.measure,
+        damage_states=a.damage_states,
         progress=False,
     )
     print(
@@ -848,6 +881,12 @@ def _run_fragility(a) -> int:
         f"to overturn {frag.median_overturning:.4g} "
         f"(beta {frag.beta_overturning:.3g})"
     )
+    for k, state in enumerate(frag.damage_states):
+        print(
+            f"{state}: {int(frag.exceeded[:, k].sum())} of {frag.im.size}; "
+            f"median {a.measure} {frag.median_damage[k]:.4g} "
+            f"(beta {frag.beta_damage[k]:.3g})"
+        )
     ax = plot.fragility(
         frag,
         title=f"{name}, lambda = {a.slenderness:g}, "

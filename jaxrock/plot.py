@@ -5,6 +5,7 @@ import numpy as np
 
 from ._fit import PulseFit, _histories
 from ._fragility import Fragility
+from ._intensity import measure_attrs
 from ._maps import BehaviorMap
 from ._record import Record
 from ._results import Outcome, Response
@@ -138,39 +139,52 @@ def compare_maps(maps, titles=None, columns: int | None = None):
     return fig
 
 
-_IM_LABELS = {
-    "pga": "PGA (m/s^2)",
-    "pgv": "PGV (m/s)",
-    "pga_ratio": "PGA / (g tan alpha)",
-}
+def _im_label(measure: str) -> str:
+    """An axis label of an intensity measure: its name and unit."""
+    attrs = measure_attrs(measure)
+    if attrs["units"] == "1":
+        return attrs["long_name"]
+    return f"{attrs['long_name']} ({attrs['units']})"
 
 
 def fragility(frag: Fragility, ax=None, title: str | None = None):
-    """Fragility curves: outcomes as points (0 or 1) and the lognormal fits."""
+    """Fragility curves: outcomes as points (0 or 1) and the lognormal fits.
+
+    Without damage states: P(rocking) and P(overturning). With
+    `fragility(..., damage_states=...)`: one curve per damage state, together,
+    from the least to the most severe, each state's outcomes as points just
+    above 1 or below 0. For a suite, the share of records that have
+    overturned the block at or below each intensity (each record's lowest
+    such scale).
+    """
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 4))
     im = np.asarray(frag.im)
-    ax.plot(
-        im,
-        frag.rocked + 0.02,
-        "o",
-        color="tab:green",
-        ms=4,
-        alpha=0.6,
-        label="rocked (1) or not (0)",
-    )
-    ax.plot(
-        im,
-        frag.overturned - 0.02,
-        "o",
-        color="tab:red",
-        ms=4,
-        alpha=0.6,
-        label="overturned (1) or not (0)",
-    )
+    if frag.damage_states:
+        cmap = plt.get_cmap("plasma")
+        count = len(frag.damage_states)
+        states = [
+            (name, frag.exceeded[:, k], cmap(0.85 * k / max(count - 1, 1)), name)
+            for k, name in enumerate(frag.damage_states)
+        ]
+    else:
+        states = [
+            ("rocking", frag.rocked, "tab:green", "rocked"),
+            ("overturning", frag.overturned, "tab:red", "overturned"),
+        ]
+    # Each state's points a little apart, so that they do not hide each other.
+    offsets = np.linspace(0.02, -0.02, len(states)) if len(states) > 1 else [0.0]
+    for (which, reached, colour, label), offset in zip(states, offsets):
+        ax.plot(
+            im,
+            reached + offset,
+            "o",
+            color=colour,
+            ms=4,
+            alpha=0.6,
+            label=f"{label} (1) or not (0)",
+        )
     if frag.motion_names is not None and frag.motion_index is not None:
-        # Incremental analysis: the share of records that have overturned the
-        # block at or below each intensity (each record's lowest such scale).
         members = np.unique(frag.motion_index)
         first = np.array(
             [
@@ -190,10 +204,9 @@ def fragility(frag: Fragility, ax=None, title: str | None = None):
                 label=f"records overturning at or below ({members.size} records)",
             )
     grid = np.geomspace(im[im > 0].min() / 1.5, im.max() * 1.5, 300)
-    for which, colour in (("rocking", "tab:green"), ("overturning", "tab:red")):
-        median = getattr(frag, f"median_{which}")
+    for which, _, colour, _ in states:
+        median, beta = _fit_of(frag, which)
         if np.isfinite(median):
-            beta = getattr(frag, f"beta_{which}")
             ax.plot(
                 grid,
                 frag.probability(grid, which),
@@ -201,13 +214,21 @@ def fragility(frag: Fragility, ax=None, title: str | None = None):
                 label=f"P({which}): median {median:.3g}, beta {beta:.2f}",
             )
     ax.set_xscale("log")
-    ax.set_xlabel(_IM_LABELS[frag.measure])
+    ax.set_xlabel(_im_label(frag.measure))
     ax.set_ylabel("probability")
     ax.set_ylim(-0.08, 1.08)
     ax.legend(fontsize=7, loc="center right")
     if title:
         ax.set_title(title, fontsize=9)
     return ax
+
+
+def _fit_of(frag: Fragility, which: str):
+    """(median, beta) of the curve `which` of `frag`."""
+    if which in ("rocking", "overturning"):
+        return getattr(frag, f"median_{which}"), getattr(frag, f"beta_{which}")
+    k = frag.damage_states.index(which)
+    return frag.median_damage[k], frag.beta_damage[k]
 
 
 def overturning_spectrum(spectra, labels=None, ax=None, linearized=True):

@@ -358,14 +358,38 @@ def test_cli_map_and_simulate(tmp_path, capsys):
 
 def test_cli_fragility(tmp_path, capsys):
     out = tmp_path / "f.png"
-    assert (
-        main(
-            ["fragility", "--base", "fixed", "--scales", "0.2:2:12", "--out", str(out)]
-        )
-        == 0
-    )
+    argv = ["fragility", "--base", "fixed", "--scales", "0.2:2:12", "--out", str(out)]
+    states = ["--damage-state", "rotation:0.5", "--damage-state", "overturning"]
+    assert main(argv + states) == 0
     assert out.stat().st_size > 10_000
-    assert "overturned" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "overturned" in text
+    overturned = int(re.search(r"(\d+) overturned", text).group(1))
+    assert re.search(
+        rf"^overturning: {overturned} of 12; median pga [\d.]+ ", text, re.M
+    )
+    assert re.search(r"^rotation:0.5: \d+ of 12; median pga", text, re.M)
+
+
+@pytest.mark.parametrize(
+    "states, message",
+    [
+        (["rotation:0"], "argument --damage-state: must be uplift, rotation:X"),
+        (["tilt:1"], "argument --damage-state: must be uplift"),
+        (["overturning", "uplift"], "`damage_states` must nest"),
+        (["displacement:0.1"], "a FixedBase does not move"),
+    ],
+)
+def test_cli_damage_states_are_checked_first(states, message, no_computation, capsys):
+    argv = ["fragility", "--base", "fixed"]
+    for state in states:
+        argv += ["--damage-state", state]
+    try:
+        status = main(argv)
+    except SystemExit as exit:
+        status = exit.code
+    assert status == 2
+    assert message in _one_error_line(capsys.readouterr().err)
 
 
 def test_cli_fragility_of_one_scale(tmp_path, capsys):

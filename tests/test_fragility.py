@@ -31,7 +31,10 @@ def test_fragility_of_a_block_under_scaled_pulse():
     p = jr.near_fault_pulse("San Fernando PCD/SN")
     scales = np.linspace(0.1, 2.0, 24)
     motions = jr.MPPulse(scales * p.amplitude, p.frequency, p.gamma, p.phase)
-    frag = jr.fragility(4.0, 1.0, jr.FixedBase(), motions, measure="pga_ratio")
+    states = ["uplift", "rotation:0.05", "rotation:1.0", "overturning"]
+    frag = jr.fragility(
+        4.0, 1.0, jr.FixedBase(), motions, measure="pga_ratio", damage_states=states
+    )
     # pga_ratio = PGA / (g tan alpha): the block uplifts exactly where it exceeds 1.
     np.testing.assert_array_equal(frag.rocked, frag.im > 1.0)
     assert frag.median_rocking == pytest.approx(1.0, abs=0.1)
@@ -46,6 +49,43 @@ def test_fragility_of_a_block_under_scaled_pulse():
     assert frag.median_rocking == pytest.approx(np.sqrt(below * above), rel=1e-12)
     step = frag.probability([below, frag.median_rocking, above], "rocking")
     np.testing.assert_array_equal(step, [0.0, 0.5, 1.0])
+    # Damage states: each its own fit, read off the results, nested.
+    assert frag.damage_states == (
+        "uplift",
+        "rotation:0.05",
+        "rotation:1",
+        "overturning",
+    )
+    alpha = np.arctan(1 / 4.0)
+    np.testing.assert_allclose(frag.max_rotation[frag.overturned], np.pi / 2 / alpha)
+    reached = frag.exceeded
+    np.testing.assert_array_equal(reached[:, 0], frag.rocked)
+    np.testing.assert_array_equal(reached[:, 1], frag.max_rotation > 0.05)
+    np.testing.assert_array_equal(reached[:, 2], frag.max_rotation > 1.0)
+    np.testing.assert_array_equal(reached[:, 3], frag.overturned)
+    assert np.all(reached[:, 1:] <= reached[:, :-1])  # each implies the one before
+    # rocking without overturning, some of it beyond 0.05 alpha and some below
+    assert (
+        0
+        < (reached[:, 1] & ~reached[:, 3]).sum()
+        < (reached[:, 0] & ~reached[:, 3]).sum()
+    )
+    for k in range(4):
+        fit = jr.fit_lognormal(frag.im, reached[:, k])
+        assert (frag.median_damage[k], frag.beta_damage[k]) == fit
+    assert (frag.median_damage[0], frag.beta_damage[0]) == (
+        frag.median_rocking,
+        frag.beta_rocking,
+    )
+    im = [0.8, 1.5, 3.0, 6.0]
+    np.testing.assert_array_equal(
+        frag.probability(im, "rotation:1.0"), frag.probability(im, "rotation:1")
+    )
+    np.testing.assert_array_equal(
+        frag.probability(im, "overturning"), frag.probability(im, states[3])
+    )
+    with pytest.raises(ValueError, match="`which` must be 'rocking', 'overturning'"):
+        frag.probability(im, "rotation:0.5")
     # As labeled arrays: the batch of pulses, by amplitude (m/s).
     pytest.importorskip("xarray")
     ds = frag.to_xarray()
@@ -55,6 +95,89 @@ def test_fragility_of_a_block_under_scaled_pulse():
     strong = float(motions.amplitude[20])
     assert bool(ds.overturned.sel(amplitude=strong)) == frag.overturned[20]
     np.testing.assert_array_equal(ds.rocked, frag.rocked)
+    assert list(ds.damage_state.values) == list(frag.damage_states)
+    assert ds.exceeded.dims == ("motion", "damage_state")
+    np.testing.assert_array_equal(
+        ds.exceeded.sel(damage_state="rotation:1"), frag.max_rotation > 1.0
+    )
+    np.testing.assert_array_equal(ds.median_damage, frag.median_damage)
+    assert ds.median_damage.attrs["units"] == "1"
+    assert ds.max_base_displacement.attrs["units"] == "m"
+
+
+@pytest.fixture(scope="module")
+def isolated():
+    """A block on the linear isolator under a pulse at 10 amplitudes, with
+    the isolator's displacement among the damage states."""
+    p = jr.near_fault_pulse("San Fernando PCD/SN")
+    scales = np.geomspace(0.2, 3.0, 10)
+    motions = jr.MPPulse(scales * p.amplitude, p.frequency, p.gamma, p.phase)
+    states = ["uplift", "overturning", "displacement:0.1", "displacement:0.3"]
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    return jr.fragility(3.0, 1.0, base, motions, damage_states=states, progress=False)
+
+
+def test_damage_states_of_an_isolator(isolated):
+    frag = isolated
+    assert frag.damage_states[2:] == ("displacement:0.1", "displacement:0.3")
+    u = frag.max_base_displacement
+    np.testing.assert_array_equal(frag.exceeded[:, 2], u > 0.1)
+    np.testing.assert_array_equal(frag.exceeded[:, 3], u > 0.3)
+    # The grid reaches either capacity in some analyses and not in others.
+    assert 0 < frag.exceeded[:, 3].sum() < frag.exceeded[:, 2].sum() < u.size
+    # The base moves more under a stronger pulse (a linear isolator).
+    assert np.all(np.diff(u[~frag.overturned]) > 0)
+    for k in range(4):
+        fit = jr.fit_lognormal(frag.im, frag.exceeded[:, k])
+        np.testing.assert_array_equal((frag.median_damage[k], frag.beta_damage[k]), fit)
+    assert frag.median_damage[2] < frag.median_damage[3]
+
+
+def test_damage_states_are_plotted_together(isolated):
+    from jaxrock import plot
+
+    ax = plot.fragility(isolated, title="four states")
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    for state in isolated.damage_states:
+        assert f"{state} (1) or not (0)" in labels
+        assert any(label.startswith(f"P({state}): median") for label in labels)
+    assert ax.get_xlabel() == "peak ground acceleration (m/s^2)"
+
+
+@pytest.mark.parametrize(
+    "base, states, message",
+    [
+        ("fixed", ["rotation"], "`damage_states` must be names of the form"),
+        ("fixed", ["rotation:-1"], "`damage_states` must be names"),
+        ("fixed", ["rotation:nan"], "`damage_states` must be names"),
+        ("fixed", ["collapse"], "`damage_states` must be names"),
+        ("fixed", [0.5], "`damage_states` must be names"),
+        ("fixed", 3, "`damage_states` must be a sequence of names"),
+        ("fixed", ["overturning", "uplift"], "must nest.*'uplift' after 'overturning'"),
+        (
+            "fixed",
+            ["rotation:0.5", "rotation:0.2"],
+            "'rotation:0.2' after 'rotation:0.5'",
+        ),
+        ("fixed", ["uplift", "uplift"], "must nest.*none twice"),
+        ("fixed", ["rotation:7"], "beyond the block's reach.*6.41"),
+        ("fixed", ["displacement:0.1"], "a FixedBase does not move"),
+        ("linear", ["displacement:0.2", "displacement:0.1"], "must nest"),
+    ],
+)
+def test_damage_states_are_checked_before_any_analysis(
+    base, states, message, monkeypatch
+):
+    from jaxrock import _fragility
+
+    def no_map(*args, **kwargs):
+        raise AssertionError("the map ran before the damage states were checked")
+
+    monkeypatch.setattr(_fragility, "behavior_map", no_map)
+    base = jr.FixedBase() if base == "fixed" else jr.LinearIsolator(2.0, 0.35, 0.5)
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    with pytest.raises(ValueError, match=message):
+        jr.fragility(4.0, 1.0, base, pulse, scales=[1.0, 2.0], damage_states=states)
 
 
 @pytest.mark.parametrize(
