@@ -108,16 +108,14 @@ def test_cases_cover_every_regime(results):
         assert any(t["impacts"] == 1 for t in seen), key
 
 
-@pytest.mark.parametrize("case", [CASES[1], CASES[2], CASES[9]], ids=str)
-def test_friction_pendulum_with_z_integrated_matches_reference(case):
-    """eta != 2: z is integrated (Bouc-Wen's ODE), not in closed form."""
+def _matches_reference(base, ref_base, case):
+    """One pulse case of `base` against the reference's `ref_base`: status,
+    outcome, impacts, max rotation and max |u|."""
     name, lam, r, scale = case
     motion, (acc, t_end, max_step) = _pulse(name, scale)
-    base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=3.0)
-    assert base.n_states == 3
     ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
-    ref_base = ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 3.0)
     theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
+    assert int(ours.status) == jr.Status.SUCCESS
     assert int(ours.outcome) == theirs["outcome"]
     assert int(ours.impacts) == theirs["impacts"]
     np.testing.assert_allclose(
@@ -126,6 +124,15 @@ def test_friction_pendulum_with_z_integrated_matches_reference(case):
     np.testing.assert_allclose(
         float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
     )
+
+
+@pytest.mark.parametrize("case", [CASES[1], CASES[2], CASES[9]], ids=str)
+def test_friction_pendulum_with_z_integrated_matches_reference(case):
+    """eta != 2: z is integrated (Bouc-Wen's ODE), not in closed form."""
+    base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=3.0)
+    assert base.n_states == 3
+    ref_base = ("fps", 0.11, 2.24, 0.5, 5e-4, 1.0, 0.9, 0.1, 3.0)
+    _matches_reference(base, ref_base, case)
 
 
 @pytest.fixture(scope="module")
@@ -200,22 +207,10 @@ def test_bilinear_isolator_matches_reference(case):
     """K = M (2 pi / T)^2 and Q = q M g with the paper's Bouc-Wen z (eta = 2,
     in closed form), against the reference's integrated z: rocking with 37
     impacts, no rocking, overturning after 7 impacts."""
-    name, lam, r, scale = case
-    motion, (acc, t_end, max_step) = _pulse(name, scale)
     q, period, y, mass_ratio = BILINEAR
     base = jr.BilinearIsolator(q, period, y, mass_ratio)
-    ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
     ref_base = ("bilinear", q, period, mass_ratio, y, 1.0, 0.9, 0.1, 2.0)
-    theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
-    assert int(ours.status) == jr.Status.SUCCESS
-    assert int(ours.outcome) == theirs["outcome"]
-    assert int(ours.impacts) == theirs["impacts"]
-    np.testing.assert_allclose(
-        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
-    )
-    np.testing.assert_allclose(
-        float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
-    )
+    _matches_reference(base, ref_base, case)
 
 
 # A ball-in-cone isolator: slope, rolling resistance, m / m_b, apex half-width.
@@ -235,19 +230,7 @@ def test_conical_rolling_isolator_matches_reference(case):
     """A rounded cone's restoring force M g s u / sqrt(u^2 + d^2) and its
     rolling resistance (the Bouc-Wen z in closed form), against the
     reference's integrated z."""
-    name, lam, r, scale = case
-    motion, (acc, t_end, max_step) = _pulse(name, scale)
     slope, mu, mass_ratio, apex = CONE
     base = jr.ConicalRollingIsolator(slope, mu, mass_ratio, apex=apex)
-    ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
     ref_base = ("cone", mu, (slope, apex), mass_ratio, 5e-4, 1.0, 0.9, 0.1, 2.0)
-    theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
-    assert int(ours.status) == jr.Status.SUCCESS
-    assert int(ours.outcome) == theirs["outcome"]
-    assert int(ours.impacts) == theirs["impacts"]
-    np.testing.assert_allclose(
-        float(ours.max_rotation), theirs["max_rotation"], rtol=1e-6, atol=1e-12
-    )
-    np.testing.assert_allclose(
-        float(ours.max_base_displacement), theirs["max_base_displacement"], rtol=1e-6
-    )
+    _matches_reference(base, ref_base, case)
