@@ -31,6 +31,8 @@ from . import design as design  # noqa: E402
 from . import io as io  # noqa: E402
 from . import records as records  # noqa: E402
 from ._block import Block as Block  # noqa: E402
+from ._design_spectrum import asce7_spectrum as asce7_spectrum  # noqa: E402
+from ._design_spectrum import eurocode8_spectrum as eurocode8_spectrum
 from ._fit import PulseFit as PulseFit  # noqa: E402
 from ._fit import fit_pulse as fit_pulse
 from ._fit import score_pulse as score_pulse
