@@ -7,7 +7,9 @@ s = sgn(theta) = +1 or -1 while rocking about the corner at x = +b or -b.
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._block import Block
 from ._ground import AbstractGroundMotion
@@ -105,13 +107,13 @@ def absolute_base_acceleration(t, base_state, base, motion):
     return computed_once(a)
 
 
-def restitution(block: Block, base: AbstractIsolator):
-    """e = theta'+ / theta'- for re-uplift (Eq. 2.13), per unit block mass.
+def momentum_restitution(block: Block, base: AbstractIsolator):
+    """e0 = theta'+ / theta'- of the momentum model at a re-uplift (Eq. 2.13).
 
     den = 4 m_b h^2 + 4 m_b b^2 + m h^2 + 4 m b^2,
     num = 4 m_b h^2 - 2 m_b b^2 + m h^2 - 2 m b^2; fixed base: 1 - 1.5 sin^2 alpha.
-    Returns (e, den / m_b) with m = 1, written in mu = m / M so that mu = 0 is the
-    fixed base.
+    Returns (e0, den / m_b) with m = 1, written in mu = m / M so that mu = 0 is
+    the fixed base.
     """
     mu = base.block_mass_fraction
     h2, b2 = block.h**2, block.b**2
@@ -120,6 +122,52 @@ def restitution(block: Block, base: AbstractIsolator):
     den = 4.0 * h2 + 4.0 * b2 + ratio * (h2 + 4.0 * b2)
     num = 4.0 * h2 - 2.0 * b2 + ratio * (h2 - 2.0 * b2)
     return num / den, den
+
+
+def restitution(block: Block, base: AbstractIsolator):
+    """e = theta'+ / theta'- applied at a re-uplift: the momentum model's e0
+    (`momentum_restitution`) times the block's `restitution_factor`, or the
+    block's `restitution`. Returns (e, den / m_b) (see `momentum_restitution`).
+    """
+    e0, den = momentum_restitution(block, base)
+    return block.applied_restitution(e0), den
+
+
+def restitution_valid(block: Block, base: AbstractIsolator):
+    """e <= 1 for the coefficient applied (traceable): a re-uplift must not
+    gain energy. Only a `restitution_factor` can break it, by an amount that
+    depends on the block's geometry and the base's mass ratio."""
+    e, _ = restitution(block, base)
+    return jnp.all(e <= 1.0)
+
+
+def check_restitution(block: Block, base: AbstractIsolator) -> None:
+    """`ValueError` naming `restitution_factor` when f e0 > 1 for concrete
+    values (traced ones: `restitution_valid`)."""
+    leaves = [block.restitution_factor, block.slenderness, block.size]
+    leaves += jax.tree_util.tree_leaves(base)
+    if block.restitution_factor is None or any(
+        isinstance(x, jax.core.Tracer) for x in leaves
+    ):
+        return
+    with jax.ensure_compile_time_eval():  # (also when called inside `jit`)
+        e0 = momentum_restitution(block, base)[0]
+    if isinstance(e0, jax.core.Tracer):
+        return
+    f, e0 = np.asarray(block.restitution_factor), np.asarray(e0)
+    fe = f * e0
+    bad = ~(fe <= 1.0)
+    if np.any(bad):
+        k = np.unravel_index(np.argmax(bad), bad.shape) if bad.ndim else ()
+        f_k = np.broadcast_to(f, bad.shape)[k]
+        e_k = np.broadcast_to(e0, bad.shape)[k]
+        raise ValueError(
+            f"`restitution_factor` times the momentum model's coefficient e0 must "
+            f"be <= 1 (a rebound that gains no energy), got f = {f_k:g} with "
+            f"e0 = {e_k:.4g}: f e0 = {f_k * e_k:.4g}. e0 depends on the block's "
+            "slenderness and, on an isolated base, on the mass ratio: here f must "
+            f"be <= {1.0 / e_k:.4g}"
+        )
 
 
 def rests_at_impact(
@@ -162,18 +210,23 @@ def rests_at_impact(
 def impact(block, base, theta_dot, base_state, rest):
     """Jump map at theta = 0 (Eqs. 2.13-2.15): post-impact (theta', base state).
 
-    Re-uplift about the other corner: theta'+ = e theta'-,
-        u'+ = u'- + 6 m h b^2 theta'- / den.
+    Re-uplift about the other corner: theta'+ = e theta'-, with e applied
+    (`restitution`), and u'+ = u'- + m h (theta'- - theta'+) / M: the linear
+    momentum M u' + m h theta' of block and base is conserved. With e the
+    momentum model's e0 this is Eq. 2.14, u'+ = u'- + 6 m h b^2 theta'- / den
+    (m h (1 - e0) / M = 6 m h b^2 / den), the form computed, plus
+    m h (e0 - e) theta'- / M (exactly zero for e = e0).
     Rocking ends (`rest`): theta'+ = 0, u'+ = u'- + m h theta'- / M.
-    Both conserve the linear momentum M u' + m h theta' of block and base.
     """
-    e, den_per_mb = restitution(block, base)
+    e0, den_per_mb = momentum_restitution(block, base)
+    e = block.applied_restitution(e0)
     new_theta_dot = jnp.where(rest, 0.0, e * theta_dot)
     if base_state is None:
         return new_theta_dot, None
     mu = base.block_mass_fraction
     # m / den = (m / m_b) / (den / m_b) and m / M = mu.
     kick_uplift = 6.0 * (mu / (1.0 - mu)) * block.h * block.b**2 / den_per_mb
+    kick_uplift = kick_uplift + mu * block.h * (e0 - e)
     kick_rest = mu * block.h
     kick = jnp.where(rest, kick_rest, kick_uplift)
     return new_theta_dot, base_state.at[1].add(kick * theta_dot)

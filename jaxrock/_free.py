@@ -2,8 +2,9 @@
 
 Once the ground is still, a block rocking on a fixed base is Housner's
 inverted pendulum: theta'' = -p^2 sin(s alpha - theta) between impacts, and
-each impact multiplies theta' by e (`restitution`). Energy is conserved
-between impacts, so the apex, the time to the next impact and whether the
+each impact multiplies theta' by the coefficient applied, e (`restitution`:
+the momentum model's, or the block's own). Energy is conserved between
+impacts, so the apex, the time to the next impact and whether the
 block overturns follow from the state alone. With x = sin((alpha - |theta|) / 2)
 and k = sin((alpha - theta_apex) / 2) (the energy: k^2 = x^2 - theta'^2 / (4 p^2)),
 

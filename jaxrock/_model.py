@@ -29,6 +29,7 @@ from ._dynamics import (
     base_acceleration_bound,
     impact,
     restitution,
+    restitution_valid,
     rests_at_impact,
 )
 from ._events import (
@@ -110,6 +111,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
     phase = jnp.asarray(Phase.TRANSLATION)
     uplift, sign = _uplift_now(t, y, phase, block, base, motion)
     valid = valid & block.valid() & base.valid() & motion.valid()
+    valid = valid & restitution_valid(block, base)
     uplift = uplift & valid
     c = Carry(
         t=t,

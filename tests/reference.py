@@ -71,11 +71,18 @@ def simulate(
     rtol=1e-10,
     atol=1e-12,
     breaks=None,
+    restitution_factor=1.0,
+    restitution=None,
 ):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
     ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g,
     ("cone", mu_r, (s, d), mbar, Y, A, g, b, eta): a rounded cone's M g s u /
     sqrt(u^2 + d^2) + mu_r M g z.
+
+    The coefficient applied at a re-uplift is `restitution` if given, else
+    `restitution_factor` times the momentum model's e (Eq. 2.13); the base's
+    velocity then follows from the horizontal momentum M u' + m h theta' of
+    block and base, conserved through the impact.
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -159,6 +166,10 @@ def simulate(
         den = 4 * mb * h * h + 4 * mb * b * b + m * h * h + 4 * m * b * b
         num = 4 * mb * h * h - 2 * mb * b * b + m * h * h - 2 * m * b * b
         e = num / den
+    if restitution is not None:
+        e = restitution
+    elif restitution_factor != 1.0:
+        e = restitution_factor * e
 
     def uplift_now(t, x):
         a = abs_base_acc(t, x)
@@ -282,8 +293,10 @@ def simulate(
                     phase, s = "R", s0
             else:
                 x[0], x[1] = 0.0, e * thd
-                if not fixed:
-                    x[3] = ud + 6 * m * h * b * b * thd / den
+                if not fixed and restitution is None and restitution_factor == 1.0:
+                    x[3] = ud + 6 * m * h * b * b * thd / den  # Eq. 2.14
+                elif not fixed:  # M u'+ + m h theta'+ = M u'- + m h theta'-
+                    x[3] = ud + m * h * (thd - x[1]) / M
                 phase, s = "R", -s
             log.append((thd, x[1], ud, 0.0 if fixed else x[3]))
     else:
