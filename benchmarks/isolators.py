@@ -8,9 +8,11 @@ outcomes' counts. The isolators: the paper's friction pendulum (mu 0.11,
 R 2.24 m), a lead-rubber bearing (Q / Mg 0.06, T 2.5 s, Y 15 mm), balls in
 spherical dishes (R 1.5 m, mu_r 0.005) and in cones (slope 0.1, mu_r 0.005),
 each with a mass ratio of 0.5. Prints a Markdown table and writes
-benchmarks/results/isolators.{json,md}.
+benchmarks/results/isolators.{json,md}; --plot PATH draws the pulse maps
+side by side (docs/map_isolators_san_fernando.png).
 
     python benchmarks/isolators.py [--repeats 2] [--bases fps,bilinear,...]
+        [--plot docs/map_isolators_san_fernando.png]
 """
 
 import argparse
@@ -38,12 +40,13 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--bases", default=",".join(BASES))
+    p.add_argument("--plot", default=None, help="a picture of the pulse maps")
     a = p.parse_args()
     motions = {
         "San Fernando PCD/SN": jr.near_fault_pulse("San Fernando PCD/SN"),
         "Pacoima Dam 164": pacoima(),
     }
-    rows = []
+    rows, maps = [], {}
     for motion_name, motion in motions.items():
         for name in a.bases.split(","):
             base = BASES[name]
@@ -58,6 +61,7 @@ def main():
                 again = call()
                 best = again if again.seconds < best.seconds else best
             counts = best.counts()
+            maps[name, motion_name] = best
             rows.append(
                 dict(
                     base=name,
@@ -93,6 +97,19 @@ def main():
         ],
     )
     write_results("isolators", rows, md)
+    if a.plot:
+        draw(maps, a.plot)
+
+
+def draw(maps, path):
+    """The San Fernando maps side by side, two to a row, to `path`."""
+    from jaxrock import plot
+
+    pulse = [(k, m) for k, m in maps.items() if k[1] == "San Fernando PCD/SN"]
+    titles = [BASES[k[0]].describe() for k, _ in pulse]
+    fig = plot.compare_maps([m for _, m in pulse], titles, columns=2)
+    fig.savefig(path, dpi=80)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
