@@ -69,8 +69,11 @@ def enable_compilation_cache() -> str | None:
     except OSError:  # a read-only home: no cache, and no error
         return None
     jax.config.update("jax_compilation_cache_dir", str(folder))
-    # Programs that compile in less than this are not worth a file.
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    # Every program, however small: JAX looks each one up in the folder
+    # anyway, and loading one of the tiny programs that operations on
+    # concrete arrays compile (about 50 ms each, a dozen in a `simulate`)
+    # takes a few ms.
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     _FOLDER = str(folder)
     remove_damaged_entries(folder)
     return _FOLDER

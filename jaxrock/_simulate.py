@@ -5,17 +5,31 @@ rising, falling) until an event (uplift, apex, impact, rising again, overturn,
 a new peak of |u|) or the end of the window; the loop then applies the
 transition (the impact map at an impact) and starts the next segment. The loop
 is a `lax.while_loop`, so `simulate` runs under `jit` and `vmap`: a finished
-lane performs zero-length solves until every lane is done.
+lane performs zero-length solves until every lane is done. With its history,
+an analysis is one compiled program too (`_record`): the same loop, which
+evaluates each segment's dense output at the history's sample times.
+
+No program here holds a host callback, so that JAX's persistent cache keeps
+them (it keeps no program that holds one): `diffeqsolve` gets its first step
+from the step-size controller (`_FirstStep`), not as `dt0`, whose check
+against t1 - t0 is an Equinox runtime check, a callback under Equinox's
+default error mode; solver failures are statuses read from the solution
+(`throw=False`), never errors raised at run time.
 """
+
+import json
+import threading
 
 import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array
 
+from . import _cache
 from ._block import Block
-from ._dynamics import Phase, vector_field
+from ._dynamics import Phase, check_restitution, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, BracketedNewton
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
@@ -39,6 +53,72 @@ from ._results import (
     Response,
     SolverOptions,
 )
+from ._xla import compiler_accepts
+
+
+class _FirstStep(diffrax.AbstractAdaptiveStepSizeController):
+    """`controller` with its first step `dt0` its own rather than
+    `diffeqsolve`'s.
+
+    `diffeqsolve` checks a `dt0` it is given against `t1 - t0` with
+    `eqx.error_if`, which under `jit` is a host callback (with Equinox's
+    default error mode), and JAX's persistent cache keeps no program that
+    holds one: every process would compile `simulate` again. Given no `dt0`,
+    `diffeqsolve` asks the controller for the first step, and this one
+    answers with the same step (scaled by the direction of time, as
+    `diffeqsolve` scales its `dt0`): the same steps, and no callback.
+    """
+
+    controller: diffrax.AbstractAdaptiveStepSizeController
+    dt0: Array
+
+    @property
+    def rtol(self):
+        return self.controller.rtol
+
+    @property
+    def atol(self):
+        return self.controller.atol
+
+    @property
+    def norm(self):
+        return self.controller.norm
+
+    def wrap(self, direction):
+        return _FirstStep(self.controller.wrap(direction), self.dt0 * direction)
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        del dt0
+        return self.controller.init(
+            terms, t0, t1, y0, self.dt0, args, func, error_order
+        )
+
+    def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
+        return self.controller.adapt_step_size(
+            t0, t1, y0, y1, args, y_error, error_order, state
+        )
+
+
+class _FixedStep(diffrax.AbstractStepSizeController):
+    """`diffrax.ConstantStepSize` with its step `dt0` its own (see
+    `_FirstStep`: no host callback)."""
+
+    dt0: Array
+    controller: diffrax.ConstantStepSize = diffrax.ConstantStepSize()
+
+    def wrap(self, direction):
+        return _FixedStep(self.dt0 * direction, self.controller.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        del dt0
+        return self.controller.init(
+            terms, t0, t1, y0, self.dt0, args, func, error_order
+        )
+
+    def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
+        return self.controller.adapt_step_size(
+            t0, t1, y0, y1, args, y_error, error_order, state
+        )
 
 
 def _solve_segment(c: Carry, block, base, motion, duration, opts, dense=False):
@@ -49,9 +129,10 @@ def _solve_segment(c: Carry, block, base, motion, duration, opts, dense=False):
     if opts.step is None:
         # The first step is the previous segment's mean step (no step-size
         # selection, which costs two evaluations a segment).
-        root_finder, dt0 = BracketedNewton(rtol=EVENT_RTOL, atol=EVENT_ATOL), c.dt
+        root_finder = BracketedNewton(rtol=EVENT_RTOL, atol=EVENT_ATOL)
+        controller = _FirstStep(controller, c.dt)
     else:
-        controller, root_finder, dt0 = diffrax.ConstantStepSize(), None, opts.step
+        root_finder, controller = None, _FixedStep(jnp.asarray(opts.step))
     # Diffrax takes the conditions present, in order (its mask: a tuple).
     event = diffrax.Event(
         tuple(jax.tree_util.tree_leaves(conditions)),
@@ -64,7 +145,7 @@ def _solve_segment(c: Carry, block, base, motion, duration, opts, dense=False):
         t0=c.t,
         # A finished lane makes a zero-length solve (vmap runs every lane's body).
         t1=jnp.where(active, t_stop, c.t),
-        dt0=dt0,
+        dt0=None,
         y0=c.y,
         args=args,
         event=event,
@@ -95,113 +176,270 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
 _run_jit = eqx.filter_jit(run)
 
 
-@eqx.filter_jit
-def _segment_dense(c, block, base, motion, duration, opts):
-    """One segment with its dense output, and the carry after its transition."""
-    sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
-    return transition(c, sol, block, base, motion, duration, opts), sol
+# Sample times evaluated per pass on a segment's dense output.
+_WINDOW = 64
 
 
-# Times evaluated per call on a segment's dense output (one compile for all).
-_WINDOW = 256
+def _state(y) -> Array:
+    """A state (theta, theta', base state) as one vector."""
+    theta, theta_dot, base_state = y
+    parts = [theta[None], theta_dot[None]]
+    return jnp.concatenate(parts if base_state is None else [*parts, base_state])
 
 
-@eqx.filter_jit
-def _evaluate(sol, ts):
-    return jax.vmap(sol.evaluate)(ts)
+def _regime(c: Carry):
+    """0 in translation, else the rocking sign (`History.regime`)."""
+    return jnp.where(c.phase == Phase.TRANSLATION, 0.0, c.sign)
 
 
-def _dense_states(sol, ts: np.ndarray):
-    """The states at times `ts` on a segment's dense output, `_WINDOW` at a time."""
-    parts = []
-    for i in range(0, ts.size, _WINDOW):
-        window = ts[i : i + _WINDOW]
-        padded = np.pad(window, (0, _WINDOW - window.size), mode="edge")
-        ys = _evaluate(sol, padded)
-        parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[: window.size], ys))
-    return jax.tree_util.tree_map(lambda *x: np.concatenate(x), *parts)
+def _record(block, base, motion, duration, opts: SolverOptions, grid):
+    """`run`, recording the time histories: one program for the analysis and
+    its history.
+
+    Each segment's dense output is evaluated at the sample times `grid` (s,
+    increasing, padded with inf) that lie inside it, `_WINDOW` at a time, and
+    at its end; the state after the segment's transition is recorded too. The
+    segments are those of `run`, with their dense output kept. A segment that
+    is redone (`transition`) is recorded as its start, twice. Returns the
+    `Response` and a dict of the recorded rows (`_history` orders them).
+    """
+    valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
+    motion = motion.with_peaks()
+    c0 = initial_carry(block, base, motion, valid)
+    size = _state(c0.y).size
+    # Each counted segment can follow a redo and the segment up to its limit,
+    # which count none (`transition`): 3 passes a segment at most. Should the
+    # rows run out, the analysis stops unfinished (MAX_SEGMENTS), never silently.
+    passes = 3 * opts.max_segments + 1
+    padded = jnp.concatenate([grid, jnp.full(_WINDOW, jnp.inf, grid.dtype)])
+    zero = jnp.zeros((), grid.dtype)
+    rows = dict(
+        grid_y=jnp.zeros((padded.size, size), grid.dtype),
+        grid_pass=jnp.full(padded.size, -1),
+        end_t=jnp.zeros(passes, grid.dtype),
+        before_y=jnp.zeros((passes, size), grid.dtype),
+        after_y=jnp.zeros((passes, size), grid.dtype),
+        before_regime=jnp.zeros(passes, grid.dtype),
+        after_regime=jnp.zeros(passes, grid.dtype),
+        kind=jnp.zeros(passes, c0.kind.dtype),
+    )
+
+    def cond(state):
+        c, k, _ = state
+        return is_active(c, opts) & (k < passes)
+
+    def body(state):
+        c, k, rows = state
+        sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
+        new = transition(c, sol, block, base, motion, duration, opts)
+        t0, t1 = c.t, new.t
+        first = jnp.searchsorted(grid, t0, side="right")
+        stop = jnp.searchsorted(grid, t1, side="left")
+
+        # Samples first..stop - 1 lie inside the segment; "sample" stop is
+        # its end, t1 (one evaluation of the dense output in the program).
+        def sample(inner):
+            i, ys, at, end = inner
+            index = i + jnp.arange(_WINDOW)
+            ts = jax.lax.dynamic_slice(padded, (i,), (_WINDOW,))
+            ts = jnp.clip(jnp.where(index == stop, t1, ts), t0, t1)
+            new_ys = jax.vmap(lambda t: _state(sol.evaluate(t)))(ts)
+            inside = (index >= first) & (index < stop)
+            old_ys = jax.lax.dynamic_slice(ys, (i, 0 * i), (_WINDOW, size))
+            old_at = jax.lax.dynamic_slice(at, (i,), (_WINDOW,))
+            ys = jax.lax.dynamic_update_slice(
+                ys, jnp.where(inside[:, None], new_ys, old_ys), (i, 0 * i)
+            )
+            at = jax.lax.dynamic_update_slice(at, jnp.where(inside, k, old_at), (i,))
+            at_end = index == stop
+            end = jnp.where(at_end.any(), new_ys[jnp.argmax(at_end)], end)
+            return i + _WINDOW, ys, at, end
+
+        _, grid_y, grid_pass, end_y = jax.lax.while_loop(
+            lambda inner: inner[0] <= stop,
+            sample,
+            (
+                jnp.minimum(first, stop),
+                rows["grid_y"],
+                rows["grid_pass"],
+                jnp.zeros(size, grid.dtype),
+            ),
+        )
+        rows = rows | dict(
+            grid_y=grid_y,
+            grid_pass=grid_pass,
+            end_t=rows["end_t"].at[k].set(t1),
+            before_y=rows["before_y"].at[k].set(end_y),
+            after_y=rows["after_y"].at[k].set(_state(new.y)),
+            before_regime=rows["before_regime"].at[k].set(_regime(c)),
+            after_regime=rows["after_regime"].at[k].set(_regime(new)),
+            kind=rows["kind"].at[k].set(new.kind),
+        )
+        return new, k + 1, rows
+
+    c, k, rows = jax.lax.while_loop(cond, body, (c0, jnp.asarray(0), rows))
+    rows = rows | dict(
+        passes=k,
+        start_y=_state(c0.y),
+        start_regime=_regime(c0),
+        start_rocked=c0.rocked,
+        start_t=c0.t + zero,
+        alpha=block.alpha,
+    )
+    times = jnp.concatenate([padded, rows["end_t"]])
+    # Rows beyond the grid (padding) read the motion at t = 0, not at inf.
+    rows["acceleration"] = jax.vmap(motion.acceleration)(
+        jnp.where(jnp.isfinite(times), times, 0.0)
+    )
+    rows["start_acceleration"] = motion.acceleration(rows["start_t"])
+    if base.hysteretic_state:
+        states = jnp.concatenate([rows["grid_y"], rows["before_y"], rows["after_y"]])
+        rows["z"] = jax.vmap(base.hysteretic)(states[:, 2:])
+        rows["start_z"] = base.hysteretic(rows["start_y"][2:])
+    return response(c, block, opts), rows
 
 
-def _rows(t, y, regime) -> np.ndarray:
-    """History rows (t, theta, theta', u, u', z, regime, base state...) from
-    states at times t; z is left 0 (`_history` computes it from the base
-    states of all rows at once)."""
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    states = np.zeros((t.size, 0)) if y[2] is None else np.asarray(y[2])
-    out = np.zeros((t.size, 7 + states.size // t.size))
-    out[:, 0] = t
-    out[:, 1] = np.asarray(y[0]).reshape(t.size)
-    out[:, 2] = np.asarray(y[1]).reshape(t.size)
-    out[:, 7:] = states.reshape(t.size, -1)
-    out[:, 3:5] = out[:, 7:9] if states.size else 0.0
-    out[:, 6] = regime
-    return out
+_RESPONSE_FIELDS = (
+    "outcome",
+    "max_rotation",
+    "max_base_displacement",
+    "impacts",
+    "uplift_time",
+    "status",
+    "steps",
+    "segments",
+)
+
+# The programs of `_record` made in this process, by the structure and shapes
+# of their arguments (see `_recording_program`).
+_PROGRAMS: dict = {}
+_PROGRAMS_LOCK = threading.Lock()
 
 
-@eqx.filter_jit
-def _acceleration(motion, t):
-    return jax.vmap(motion.acceleration)(t)
+def _recording_program(treedef, specs):
+    """`_record` for arguments of the structure `treedef` and the shapes
+    `specs`, compiled: a function of the arguments' leaves. Made once per
+    process; with jaxrock's cache folder the compiled program is kept there
+    (`_cache.compiled`), and a later process loads it instead of tracing,
+    lowering and compiling it."""
+    key = (treedef, specs)
+    with _PROGRAMS_LOCK:
+        if key not in _PROGRAMS:
+            _PROGRAMS[key] = _make_recording_program(treedef, specs)
+        return _PROGRAMS[key]
 
 
-@eqx.filter_jit
-def _hysteretic(base, states):
-    return jax.vmap(base.hysteretic)(states)
+def _make_recording_program(treedef, specs):
+    def record(*leaves):
+        result, rows = _record(*jax.tree_util.tree_unflatten(treedef, leaves))
+        # Plain containers out: a kept program's output structure is pickled,
+        # and a Module's would not read back.
+        return {f: getattr(result, f) for f in _RESPONSE_FIELDS}, rows
+
+    options = _compiler_options()
+    static = _cache.static_key(treedef)
+    shapes = [(s.shape, str(s.dtype)) for s in specs]
+    key = json.dumps([static, shapes, options])
+    if static is None or len(jax.local_devices()) > 1:
+        key = None  # not kept
+
+    def lower():
+        accepted = options if compiler_accepts(options) else {}
+        return jax.jit(record, compiler_options=accepted).lower(*specs)
+
+    return _cache.compiled("simulate", key, lower)
 
 
-def _rowwise(f, module, x: np.ndarray) -> np.ndarray:
-    """f(module, x) for a history's rows x, compiled (op by op it took
-    seconds); the rows padded to a power of two so that histories of other
-    lengths reuse a handful of compiles."""
-    n = x.shape[0]
-    pad = [(0, (1 << (n - 1).bit_length()) - n)] + [(0, 0)] * (x.ndim - 1)
-    return np.asarray(f(module, np.pad(x, pad, mode="edge")))[:n]
+def _compiler_options() -> dict:
+    """XLA's options for `_record`'s program: on the CPU, LLVM's optimization
+    level 0. One analysis runs in milliseconds and compiles in seconds: at
+    level 0 the program compiles in about 0.7x the time and runs in about 4x
+    (a few ms), and its results move in their last bits (LLVM fuses no
+    multiply-add)."""
+    if jax.default_backend() != "cpu":
+        return {}
+    return {"xla_backend_optimization_level": 0}
 
 
 def _history(block, base, motion, duration, opts, step):
-    """The same segments in a Python loop, sampled every `step` (s) and at
-    every event.
+    """The analysis with its time histories, sampled every `step` (s) and at
+    every event: the `Response` and its `History`.
 
-    Returns the final carry and a `History`; at an event both the state just
-    before and just after the transition are recorded (same time).
+    At an event both the state just before and just after the transition are
+    recorded (same time). The samples are padded to a power of two (at least
+    2048), so that analyses of other lengths reuse a handful of compiles.
     """
-    duration = float(duration)
+    duration, step = float(duration), float(step)
     grid = np.linspace(0.0, duration, int(np.ceil(duration / step - 1e-9)) + 1)
-    c = initial_carry(block, base, motion)
+    size = max(2048, 1 << (grid.size - 1).bit_length())
+    grid = np.pad(grid, (0, size - grid.size), constant_values=np.inf)
+    args = (block, base, motion, np.float64(duration), opts, grid)
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    # Leaves as arrays of their own dtypes (not weakly typed): the program
+    # compiled for their shapes takes them as they are.
+    leaves = [jnp.asarray(np.asarray(x)) for x in leaves]
+    specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
+    result, rows = _recording_program(treedef, specs)(*leaves)
+    return Response(**result), _history_rows(jax.device_get(rows), grid)
 
-    def regime(carry):
-        return 0.0 if int(carry.phase) == Phase.TRANSLATION else float(carry.sign)
 
-    rows = [_rows(c.t, c.y, regime(c))]
-    times, kinds = ([0.0], ["uplift"]) if bool(c.rocked) else ([], [])
-    while not bool(c.done) and int(c.segments) < opts.max_segments:
-        new, sol = _segment_dense(c, block, base, motion, duration, opts)
-        t0, t1 = float(c.t), float(new.t)
-        # The grid inside the segment, then the state just before the event.
-        ts = np.append(grid[(grid > t0) & (grid < t1)], t1)
-        ys = _dense_states(sol, ts)
-        rows += [_rows(ts, ys, regime(c)), _rows(new.t, new.y, regime(new))]
-        kind = EventKind(int(new.kind))
-        if kind != EventKind.END:
-            times.append(t1)
-            kinds.append(kind.name.lower())
-        c = new
-    h = np.concatenate(rows)
-    if base.hysteretic_state:
-        h[:, 5] = _rowwise(_hysteretic, base, h[:, 7:])  # z
-    history = History(
-        t=h[:, 0],
-        theta=h[:, 1],
-        theta_dot=h[:, 2],
-        u=h[:, 3],
-        u_dot=h[:, 4],
-        z=h[:, 5],
-        regime=h[:, 6],
-        ground_acceleration=_rowwise(_acceleration, motion, h[:, 0]),
-        event_times=np.asarray(times),
-        event_kinds=tuple(kinds),
-        alpha=float(block.alpha),
+def _history_rows(rows: dict, grid: np.ndarray) -> History:
+    """The `History` of `_record`'s rows, in order: the start, then for each
+    pass of the segment loop its samples, the state at its end and the state
+    after its transition."""
+    size, passes = rows["grid_y"].shape[0], int(rows["passes"])
+    taken = np.flatnonzero(rows["grid_pass"] >= 0)
+    ends = np.arange(passes)
+    order = np.lexsort(
+        (
+            np.concatenate([[0], taken, 0 * ends, 0 * ends]),
+            np.concatenate([[0], 0 * taken, 1 + 0 * ends, 2 + 0 * ends]),
+            np.concatenate([[-1], rows["grid_pass"][taken], ends, ends]),
+        )
     )
-    return c, history
+
+    def column(start, samples, before, after):
+        parts = [np.asarray(start)[None], samples[taken], before[:passes]]
+        return np.concatenate([*parts, after[:passes]])[order]
+
+    grid = np.pad(grid, (0, size - grid.size), constant_values=np.inf)
+    y = column(rows["start_y"], rows["grid_y"], rows["before_y"], rows["after_y"])
+    sample_regime = rows["before_regime"][np.maximum(rows["grid_pass"], 0)]
+    acceleration = rows["acceleration"]
+    if "z" in rows:
+        z = rows["z"]
+        n = rows["end_t"].size
+        z = column(rows["start_z"], z[:size], z[size : size + n], z[size + n :])
+    else:
+        z = np.zeros(y.shape[0])
+    kinds = [EventKind(int(k)) for k in rows["kind"][:passes]]
+    events = [(t, k) for t, k in zip(rows["end_t"], kinds) if k != EventKind.END]
+    if rows["start_rocked"]:
+        events.insert(0, (0.0, EventKind.UPLIFT))
+    moving = y.shape[1] > 2  # a base with a state: u and u' lead it
+    return History(
+        t=column(rows["start_t"], grid, rows["end_t"], rows["end_t"]),
+        theta=y[:, 0],
+        theta_dot=y[:, 1],
+        u=y[:, 2] if moving else np.zeros(y.shape[0]),
+        u_dot=y[:, 3] if moving else np.zeros(y.shape[0]),
+        z=z,
+        regime=column(
+            rows["start_regime"],
+            sample_regime,
+            rows["before_regime"],
+            rows["after_regime"],
+        ),
+        ground_acceleration=column(
+            rows["start_acceleration"],
+            acceleration[:size],
+            acceleration[size:],
+            acceleration[size:],
+        ),
+        event_times=np.asarray([t for t, _ in events], dtype=float),
+        event_kinds=tuple(k.name.lower() for _, k in events),
+        alpha=float(rows["alpha"]),
+    )
 
 
 def simulate(
@@ -242,8 +480,9 @@ def simulate(
             about 1e-12 s on the dense output whatever the tolerances.
         atol: the integrator's absolute tolerance, in the state's units (rad,
             rad/s, m, m/s).
-        history: also return the time histories (`Response.history`), computed
-            by a Python loop of compiled segments.
+        history: also return the time histories (`Response.history`), from
+            one compiled program for the analysis and its history (concrete
+            inputs only: not under `jit`, `vmap` or `jacfwd`).
         history_step: spacing of the history's samples (s), one number > 0;
             every event is recorded as well. Default: duration / 2000, at
             most 0.01 s.
@@ -275,7 +514,10 @@ def simulate(
     """
     _check_single(block, base, motion)
     if duration is None:
-        duration = motion.end_time + 5.0
+        end = motion.end_time
+        # A concrete end in NumPy: an operation on a concrete JAX array
+        # compiles a program of its own.
+        duration = (end if isinstance(end, jax.core.Tracer) else np.asarray(end)) + 5.0
     duration = one_real_number("duration", duration, "finite and > 0 (s)")
     positive("duration", duration)
     opts = SolverOptions.for_motion(
@@ -288,8 +530,7 @@ def simulate(
         history_step = min(float(duration) / 2000.0, 0.01)
     history_step = one_real_number("history_step", history_step, "finite and > 0 (s)")
     positive("history_step", history_step)
-    c, hist = _history(block, base, motion.with_peaks(), duration, opts, history_step)
-    result = response(c, block, opts)
+    result, hist = _history(block, base, motion, duration, opts, history_step)
     return eqx.tree_at(lambda r: r.history, result, hist, is_leaf=lambda x: x is None)
 
 
@@ -311,3 +552,4 @@ def _check_single(block, base, motion):
                 f"shapes {sorted(shapes)}: use `behavior_map` for batches, or "
                 "`jax.vmap(simulate)`"
             )
+    check_restitution(block, base)

@@ -258,11 +258,12 @@ def test_map_loads_its_compiled_chunk_loop(tmp_path, linear_map):
 
 
 ENTRY = """
-import jax, jax.numpy as jnp, jaxrock
+import jax, jax.numpy as jnp
 hits = []
 jax.monitoring.register_event_listener(
     lambda event, **kw: hits.append(1) if event.endswith("cache_hits") else None
 )
+import jaxrock  # its programs (a conversion at import) are entries too
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
 print(float(jax.jit(lambda x: jnp.sin(x) * 3.0)(1.0)), len(hits))
 """
