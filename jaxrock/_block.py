@@ -2,6 +2,7 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from ._misc import GRAVITY, AbstractChecked, Constraint, parameter, real_number
@@ -90,9 +91,9 @@ class Block(AbstractChecked):
         self.size = size
         if restitution is None and restitution_factor is None:
             # 1 for each block: a batch of blocks keeps one batch shape.
-            shape = jnp.broadcast_shapes(
-                jnp.shape(self.slenderness), jnp.shape(self.size)
-            )
+            # (NumPy's shape: the fields are converted, and refused, after
+            # __init__; a traced value has its shape too.)
+            shape = np.broadcast_shapes(np.shape(slenderness), np.shape(size))
             restitution_factor = jnp.ones(shape, dtype=float)
         self.restitution_factor = restitution_factor
         self.restitution = restitution
