@@ -353,9 +353,8 @@ def _make_recording_program(treedef, specs):
 def _compiler_options() -> dict:
     """XLA's options for `_record`'s program: on the CPU, LLVM's optimization
     level 0. One analysis runs in milliseconds and compiles in seconds: at
-    level 0 the program compiles in about 0.7x the time and runs in about 4x
-    (a few ms), and its results move in their last bits (LLVM fuses no
-    multiply-add)."""
+    level 0 the program compiles in less time and runs in a few ms, and its
+    results move in their last bits (docs/performance.md, "Start-up")."""
     if jax.default_backend() != "cpu":
         return {}
     return {"xla_backend_optimization_level": 0}
