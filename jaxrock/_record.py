@@ -277,6 +277,53 @@ class Record(AbstractGroundMotion):
         factor = np.broadcast_to(target / now, now.shape)
         return self._rebuilt(jnp.asarray(factor), **self.labels())
 
+    def scaled_to_spectrum(
+        self, periods, target, *, damping: float = 0.05, each: bool = True
+    ) -> "Record":
+        """The record or suite scaled to a target spectrum over a period range.
+
+        `periods` (s, finite and > 0) sample the range, `target` gives the
+        target's pseudo-spectral acceleration there (m/s^2, > 0; e.g.
+        `9.81 * jr.asce7_spectrum(periods, ...)`), `damping` the spectra's.
+        With `each` (the default) every record gets the factor that fits its
+        log spectrum to the target's in least squares,
+        ln f_i = mean_k ln(target_k / Sa_i(T_k)); without, the suite gets one
+        factor, the least-squares fit of the log of its mean spectrum,
+        ln f = mean_k ln(target_k / mean_i Sa_i(T_k)) (the suite's mean is
+        what ASCE 7-22 Sec. 16.2.3 compares with the target). A record whose
+        Sa is 0 at a period of the range is refused.
+
+        Examples:
+            >>> import numpy as np, jaxrock as jr
+            >>> t = np.arange(0.0, 20.0, 0.01)
+            >>> rec = jr.Record(np.sin(2 * np.pi * t) * np.exp(-0.2 * t), 0.01)
+            >>> periods = np.linspace(0.5, 2.0, 16)
+            >>> target = 3.0 * jr.response_spectrum(rec, periods).pseudo_acceleration
+            >>> round(float(rec.scaled_to_spectrum(periods, target).factor), 12)
+            3.0
+        """
+        from ._response_spectrum import check_periods, response_spectrum
+
+        periods = check_periods(periods)
+        target = np.asarray(target, dtype=float)
+        if target.shape != periods.shape or not np.all(
+            np.isfinite(target) & (target > 0)
+        ):
+            raise ValueError(
+                f"`target` must hold one Sa (m/s^2), finite and > 0, per period "
+                f"({periods.size}), got shape {target.shape}"
+            )
+        sa = np.asarray(response_spectrum(self, periods, damping).pseudo_acceleration)
+        if np.any(sa <= 0):
+            raise ValueError("a record with zero Sa in `periods` cannot be scaled")
+        if each:
+            factor = np.exp(np.mean(np.log(target / sa), axis=-1))
+        else:
+            mean = sa.reshape(-1, periods.size).mean(axis=0)
+            one = np.exp(np.mean(np.log(target / mean)))
+            factor = np.full(sa.shape[:-1], one)
+        return self._rebuilt(jnp.asarray(factor), **self.labels())
+
     def labels(self, flat: bool = False) -> dict:
         """name, azimuth and rsn; with `flat`, as tuples over the records."""
         out = dict(name=self.name, azimuth=self.azimuth, rsn=self.rsn)

@@ -150,3 +150,40 @@ def test_a_record_with_zero_sa_cannot_be_scaled():
         jr.Record(np.zeros(10), 0.01).scaled_to(sa=(1.0, 2.0))
     with pytest.raises(ValueError, match="give exactly one of"):
         jr.Record(np.ones(10), 0.01).scaled_to(pga=1.0, sa=(1.0, 2.0))
+
+
+def test_records_scaled_to_a_target_spectrum(record):
+    """Each record's log spectrum fitted to the target's in least squares
+    (its log residuals average to 0), or one factor fitting the suite's mean
+    spectrum; a record's own spectrum times c gives the factor c."""
+    other = jr.Record(np.asarray(record.samples)[::-1][:30], 0.01)
+    suite = jr.Record.stack([record, other])
+    periods = np.geomspace(0.1, 1.0, 12)
+    target = 9.81 * jr.asce7_spectrum(periods, sds=1.0, sd1=0.6, tl=8.0)
+
+    def psa(motion):
+        return np.asarray(jr.response_spectrum(motion, periods).pseudo_acceleration)
+
+    each = suite.scaled_to_spectrum(periods, target)
+    residuals = np.log(target / psa(each)).mean(axis=-1)
+    np.testing.assert_allclose(residuals, 0.0, atol=1e-12)
+    assert abs(float(each.factor[0]) - float(each.factor[1])) > 1e-3
+    one = suite.scaled_to_spectrum(periods, target, each=False)
+    assert float(one.factor[0]) == float(one.factor[1])
+    mean = psa(one).mean(axis=0)
+    assert abs(np.log(target / mean).mean()) < 1e-12
+    own = record.scaled_to_spectrum(periods, 2.5 * psa(record))
+    assert float(own.factor) == pytest.approx(2.5, rel=1e-13)
+
+
+@pytest.mark.parametrize(
+    "periods, target, message",
+    [
+        ([0.5, 1.0], [1.0], "`target` must hold one Sa"),
+        ([0.5, 1.0], [1.0, -1.0], "`target` must hold one Sa"),
+        ([0.0, 1.0], [1.0, 1.0], "`periods`"),
+    ],
+)
+def test_scaled_to_spectrum_names_bad_input(record, periods, target, message):
+    with pytest.raises(ValueError, match=message):
+        record.scaled_to_spectrum(periods, target)
