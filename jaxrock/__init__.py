@@ -6,7 +6,8 @@ compilation cache in `~/.cache/jaxrock/xla` (a second run reuses the compiled
 programs of the first, and maps their compiled loops), unless JAX's cache is
 configured already; `JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off`
 turns it off. And it has XLA compile each while loop as one kernel on the CPU
-(the loop that steps a map's lanes runs 1.1-2x faster) by adding
+(the loop that steps a map's lanes runs faster: see the documentation's
+performance page) by adding
 `--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=
 1000000000000000` to `XLA_FLAGS`, unless `XLA_FLAGS` sets XLA's backend
 options already, JAX has computed before the import, or

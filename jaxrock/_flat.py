@@ -304,9 +304,9 @@ def _dense_in_s(solver, a: "_Attempt"):
 
     Tsit5's is a quartic in s, Dopri8's a sextic (`_dense_weights`): their
     coefficients are computed once, and each evaluation is Horner's rule
-    (elementwise: cheap inside Newton's iterations). With Diffrax's
-    interpolation object, Dopri8's record map on a friction pendulum takes
-    1.03x the time.
+    (elementwise: cheap inside Newton's iterations), where Diffrax's
+    interpolation object rebuilds them at each evaluation (the docs'
+    performance page, "Choices in the code").
     """
     weights = _dense_weights(solver)
     if weights is None:
@@ -510,13 +510,12 @@ def _look_ahead(a: _Attempt, located, new):
     return eqx.tree_at(lambda n: n.dt, new, jnp.where(retry, retry_dt, a.next_dt))
 
 
-# Lanes whose events are located together (a batch of the root find): 8. On
-# the 64 lanes of a loop under a record, batches of 16 take 1.15x the time on
-# the fixed base, of 4 0.98x; on 128 lanes, 16 took 1.02-1.07x, 32 1.15x.
-# On a base with a hysteretic state, whose events are costly (its conditions
-# read z) and rare (4% of the friction pendulum's steps under a record, 11%
-# of the fixed base's), 4: the friction pendulum's record map takes 0.95x the
-# time of 8, its pulse map the same; 4 on the linear isolator took 1.03x.
+# Lanes whose events are located together (a batch of the root find): 8, as
+# many as end a step in most iterations of a CPU's 64 lanes (a larger batch
+# makes every lane that moves on pay for the root find). On a base with a
+# hysteretic state, whose events are costly (their conditions read z) and
+# rarer, 4. The timings behind both: the docs' performance page, "Choices in
+# the code".
 _BATCH, _BATCH_HYSTERETIC = 8, 4
 
 

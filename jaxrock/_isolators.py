@@ -358,8 +358,8 @@ class AbstractClosedFormBoucWen(AbstractBoucWenIsolator):
     (u, u', u_r, z_r, w0), w0 the travel (in units of Y) after which a
     shrinking |z| passes 0; the memory restarts at each reversal of u' (an
     event) or where an impact reverses u'. Without the stiff z, steps follow
-    the motion: on the paper's friction-pendulum map, 5x fewer steps than
-    `IntegratedFrictionPendulum`.
+    the motion, not the stiff z (`IntegratedFrictionPendulum` takes several
+    times the steps: the docs' performance page).
     """
 
     eta: ClassVar[float] = 2.0

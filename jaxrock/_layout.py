@@ -16,10 +16,9 @@ import jax
 
 from ._misc import is_count
 
-# Lanes of one compiled loop on a CPU. Measured on a 2-core CPU with the loop
-# as one kernel, under the Pacoima Dam record: 128 lanes take 1.14x (linear
-# isolator, friction pendulum) and 0.98x (fixed base) the time of 64, 32 lanes
-# 0.99x, 1.03x and 1.2x; under a pulse 128 lanes gain nothing.
+# Lanes of one compiled loop on a CPU: enough to fill a core's vector units,
+# few enough that lanes seldom wait for each other (the docs' performance
+# page, "Choices in the code", has the timings of 32, 64 and 128).
 CPU_LANE_WIDTH = 64
 # Lanes of one compiled loop on an accelerator (a GPU): each iteration of the
 # loop is a sequence of kernel launches whose cost hardly depends on the

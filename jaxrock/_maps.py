@@ -1014,10 +1014,9 @@ def _compiler_options(base: AbstractIsolator, motion: AbstractGroundMotion) -> d
 
     On the CPU, a loop under a closed-form motion on a base without a
     hysteretic state compiles with XLA's loop emitters instead of its fusion
-    emitters: on the paper's map it compiles about 1 s faster (fixed base,
-    4.5 against 3.5 s; linear isolator, 4.0 against 3.2 s) and runs as fast
-    (the fixed base's loop within 13%). Records' reads of their samples and a
-    friction pendulum's z run 1.3-1.6x faster with the fusion emitters.
+    emitters: it compiles faster and runs about as fast, while records' reads
+    of their samples and a friction pendulum's z run faster with the fusion
+    emitters (the docs' performance page, "Choices in the code").
     (XLA releases without that option, jaxlib 0.11 on, keep their default.)
     """
     if jax.default_backend() != "cpu":

@@ -492,8 +492,8 @@ class Record(AbstractGroundMotion):
         rest on a fixed base skipping to just before its next uplift, whose
         vector field reads no x_g'') reads its end exactly, and its inner
         times on that line. (The line is written out here and in
-        `acceleration`: one helper for both compiled to a slower loop, 1.07-
-        1.11x the fixed base's Pacoima map.)"""
+        `acceleration`: one helper for both compiled to a slower loop; the
+        docs' performance page, "Choices in the code".)"""
         dt, length = self._dt, self._length
         index, kink = self._next_sample(times[0])
         k = jnp.clip(index - 1.0, 0, length - 2).astype(int)
@@ -653,10 +653,8 @@ class Record(AbstractGroundMotion):
 
         Steps of dt and a short remainder would leave the step-size
         controller a step much shorter than it proposed, from which it grows
-        the next one again: under the Pacoima record, equal steps take 3%
-        fewer steps on a friction pendulum (0.97x the time of its map, and a
-        3.5 times smaller error of max rotation at the 95th percentile) and
-        0.96x the time of the linear isolator's map."""
+        the next one again: equal steps take fewer steps and err less (the
+        docs' performance page, "Choices in the code")."""
         n = jnp.ceil((kink - t0) / dt)
         equal = jnp.where(n <= 1, kink, t0 + (kink - t0) / n)
         return jnp.where(n <= _EQUAL_STEPS, equal, t0 + dt)

@@ -16,15 +16,15 @@ loop gathers, never scatters.)
 
 The option is process-wide and read when JAX starts its CPU backend, so it is
 set at import, before any computation: importing jaxrock after JAX has
-computed leaves it unset (with a warning), and maps run 1.1-2x slower (the
+computed leaves it unset (with a warning), and maps run slower (the
 same results, but for the last bits of a friction pendulum's z).
 
 `JAXROCK_LOOP_KERNELS=flattened` adds XLA's `xla_cpu_flatten_after_fusion`:
 the fused groups of a kernel are inlined into it, and the compiler optimizes
-across them. Under the Pacoima record the friction pendulum's map then runs
-in 0.76x the time, the linear isolator's in about 1.0x and the fixed base's
-in 1.09x, and every map compiles 2-4.5x longer: for long campaigns of
-friction-pendulum maps, whose compiled loops the cache folder keeps.
+across them. The friction pendulum's record maps then run faster, the
+others about as fast, and every map compiles several times longer (the
+documentation's performance page, "One kernel a loop"): for long campaigns
+of friction-pendulum maps, whose compiled loops the cache folder keeps.
 """
 
 import functools
@@ -61,7 +61,7 @@ def compile_loops_whole() -> bool:
     if _backends_started():
         warnings.warn(
             "jaxrock was imported after JAX started its backends, too late to "
-            f"compile loops as one kernel ({OPTION}): behavior maps run 1.1-2x "
+            f"compile loops as one kernel ({OPTION}): behavior maps run "
             "slower. Import jaxrock before JAX computes anything, or set "
             f"{ENVIRONMENT}=off to keep XLA's default without this warning.",
             RuntimeWarning,
