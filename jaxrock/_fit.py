@@ -279,30 +279,39 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
         if value < 1:
             raise ValueError(f"`{name}` must be a positive integer, got {value!r}")
     samples, dt = _checked(record, "fit", _MIN_SAMPLES, _MIN_DURATION)
-    n = samples.size
+    u, theta, scale = _fitted_parameters(samples, dt, int(starts), int(steps))
+    pulse = _pulse_of(theta, scale, duration=(samples.size - 1) * dt)
+    return _scored(u, dt, pulse)
+
+
+def _fitted_parameters(samples, dt, starts: int, steps: int):
+    """The record's velocity u (m/s), the best fit's unconstrained
+    parameters, and the velocity's scale max |v| (see `fit_pulse`)."""
     u = _velocity(samples, dt)
     v = _detrended(u)  # for the starting points only
     peak = int(np.argmax(np.abs(v)))
     scale = float(np.abs(v[peak]))
-
     stride = max(1, int(_COARSE_DT / dt + 1e-9))
     fine, coarse = _samples(u, dt, 1), _samples(u, dt, stride)
-    theta0 = _starts(int(starts), peak * dt)
     theta, _ = _fit(
         tuple(jnp.asarray(x) for x in fine),
         tuple(jnp.asarray(x) for x in coarse),
         jnp.asarray(scale),
-        jnp.asarray(theta0),
-        int(steps),
+        jnp.asarray(_starts(starts, peak * dt)),
+        steps,
     )
+    return u, np.asarray(theta), scale
 
-    amplitude, f, gamma, nu, t0 = (float(x) for x in _unpack(np.asarray(theta), scale))
+
+def _pulse_of(theta, scale: float, duration: float) -> MPPulse:
+    """The `MPPulse` of the fitted parameters, A > 0 and nu in [0, 360);
+    `ValueError` if a record of `duration` s holds no whole period of it."""
+    amplitude, f, gamma, nu, t0 = (float(x) for x in _unpack(theta, scale))
     # A fit at the bound gamma -> 1 rounds to 1.0, which `MPPulse` refuses.
     gamma = max(gamma, math.nextafter(1.0, 2.0))
     nu = math.degrees(nu)
     if amplitude < 0.0:  # -A cos(x + nu) = A cos(x + nu + 180 deg)
         amplitude, nu = -amplitude, nu + 180.0
-    duration = (n - 1) * dt
     if not 1.0 / f <= duration:
         raise ValueError(
             f"`record` lasts {duration:g} s, less than the period 1/f_p = "
@@ -312,7 +321,7 @@ def fit_pulse(record: Record, *, starts: int = 64, steps: int = 400) -> PulseFit
             "acceleration, which the fit's linear baseline does not remove), "
             "correct its baseline first"
         )
-    return _scored(u, dt, MPPulse(amplitude, f, gamma, nu % 360.0, t0=t0))
+    return MPPulse(amplitude, f, gamma, nu % 360.0, t0=t0)
 
 
 def score_pulse(record: Record, pulse: MPPulse) -> PulseFit:

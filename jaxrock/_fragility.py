@@ -574,18 +574,45 @@ def fragility(
     positive("slenderness", slenderness)
     states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
-    names = motions.names()
-    labels = coordinates(base, motions)
+    names, labels = motions.names(), coordinates(base, motions)
+    motions, scales = _ensemble(motions, scales)
+    im = _moving_measure(motions, measure, slenderness, size)
+    bm = behavior_map([slenderness], [size], base, motions, **map_options)
+    return Fragility(
+        **_fitted(bm, im, parsed),
+        measure=measure,
+        slenderness=float(slenderness),
+        size=float(size),
+        base=bm.base,
+        motion=bm.motion,
+        seconds=bm.seconds,
+        scales=scales,
+        coordinates=labels,
+        motion_index=np.arange(bm.outcome.size) % members,
+        motion_names=names,
+        damage_states=states,
+    )
+
+
+def _ensemble(motions, scales):
+    """The motions at every factor of `scales` (and the factors), or, with
+    `scales` None, the motions as given, which must then be an ensemble."""
     if scales is not None:
         scales = grid_axis("scales", scales)
-        motions = motions.scaled(scales)
-    elif motions.batch_shape == ():
+        return motions.scaled(scales), scales
+    if motions.batch_shape == ():
         raise ValueError(
             "`motions` must be an ensemble (a suite of records or a batched pulse), "
             "or give `scales`"
         )
-    im = _moving_measure(motions, measure, slenderness, size)
-    bm = behavior_map([slenderness], [size], base, motions, **map_options)
+    return motions, None
+
+
+def _fitted(bm, im, parsed) -> dict:
+    """A fragility's per-analysis results (one row per cell of the map `bm`,
+    its intensity measures `im`) and the lognormal fits of P(rocking),
+    P(overturning) and of each parsed damage state over the analyses whose
+    status is SUCCESS."""
     outcome = bm.outcome.reshape(-1)
     im = np.broadcast_to(im, outcome.shape)
     ok = bm.status.reshape(-1) == Status.SUCCESS
@@ -597,28 +624,17 @@ def fragility(
     max_u = bm.max_base_displacement.reshape(-1)
     exceeded = _exceeded(parsed, outcome, max_rotation, max_u)
     fits = np.array([fit_lognormal(im[ok], e[ok]) for e in exceeded.T]).reshape(-1, 2)
-    return Fragility(
+    return dict(
         im=np.asarray(im),
         rocked=rocked,
         overturned=overturned,
         status=bm.status.reshape(-1),
-        measure=measure,
         median_rocking=med_r,
         beta_rocking=beta_r,
         median_overturning=med_o,
         beta_overturning=beta_o,
-        slenderness=float(slenderness),
-        size=float(size),
-        base=bm.base,
-        motion=bm.motion,
-        seconds=bm.seconds,
-        scales=scales,
-        coordinates=labels,
-        motion_index=np.arange(outcome.size) % members,
-        motion_names=names,
         max_rotation=max_rotation,
         max_base_displacement=max_u,
-        damage_states=states,
         exceeded=exceeded,
         median_damage=fits[:, 0],
         beta_damage=fits[:, 1],

@@ -195,6 +195,23 @@ def intensity_measure(
         1.223
     """
     name, period = parse_measure(measure)
+    _check_inputs(motion, name, measure, slenderness, size)
+    shape = tuple(motion.batch_shape)
+    if name == "sa":
+        spectrum = response_spectrum(motion, check_periods(period), SA_DAMPING)
+        return spectrum.pseudo_acceleration[..., 0]
+    if name == "frequency_ratio":
+        omega = 2 * np.pi * np.asarray(motion.frequency)
+        p = np.sqrt(3 * GRAVITY / (4 * np.asarray(size)))
+        return np.broadcast_to(omega / p, shape).copy()
+    if name in ("pga", "pgv", "pga_ratio", "pgv_ratio"):
+        return _peak_measure(motion, name, slenderness, size)
+    return _integral_measure(motion, name)
+
+
+def _check_inputs(motion, name, measure, slenderness, size) -> None:
+    """`ValueError` unless `motion` is a ground motion with what the measure
+    `name` needs (a block's measure: the block; a frequency: a pulse)."""
     if name in BLOCK_MEASURES:
         if slenderness is None or (name != "pga_ratio" and size is None):
             needs = "`slenderness`" + (" and `size`" if name != "pga_ratio" else "")
@@ -212,31 +229,32 @@ def intensity_measure(
             f"`motion` must be a ground motion (a Record or a pulse), got "
             f"{type(motion).__name__}"
         )
-    shape = tuple(motion.batch_shape)
-    if name == "sa":
-        spectrum = response_spectrum(motion, check_periods(period), SA_DAMPING)
-        return spectrum.pseudo_acceleration[..., 0]
-    if name == "frequency_ratio":
-        omega = 2 * np.pi * np.asarray(motion.frequency)
-        p = np.sqrt(3 * GRAVITY / (4 * np.asarray(size)))
-        return np.broadcast_to(omega / p, shape).copy()
-    if name in ("pga", "pgv", "pga_ratio", "pgv_ratio"):
-        if isinstance(motion, Record):
-            samples = motion_samples(motion)
-            v, _, _, _ = _integrals(samples.rows, samples.dt, samples.length)
-            pga = samples.per_member(np.abs(samples.rows).max(axis=1))
-            pgv = samples.per_member(np.abs(v).max(axis=1))
-        else:
-            pga, pgv = (np.reshape(x, shape) for x in _pulse_peaks(motion))
-        if name == "pga":
-            return pga
-        if name == "pgv":
-            return pgv
-        tan_alpha = 1.0 / np.asarray(slenderness)
-        if name == "pga_ratio":
-            return pga / (GRAVITY * tan_alpha)
-        p = np.sqrt(3 * GRAVITY / (4 * np.asarray(size)))
-        return pgv * p / (GRAVITY * tan_alpha)
+
+
+def _peak_measure(motion, name, slenderness, size):
+    """PGA, PGV, or the block's PGA / (g tan alpha) and PGV p / (g tan alpha)."""
+    if isinstance(motion, Record):
+        samples = motion_samples(motion)
+        v, _, _, _ = _integrals(samples.rows, samples.dt, samples.length)
+        pga = samples.per_member(np.abs(samples.rows).max(axis=1))
+        pgv = samples.per_member(np.abs(v).max(axis=1))
+    else:
+        shape = tuple(motion.batch_shape)
+        pga, pgv = (np.reshape(x, shape) for x in _pulse_peaks(motion))
+    if name == "pga":
+        return pga
+    if name == "pgv":
+        return pgv
+    tan_alpha = 1.0 / np.asarray(slenderness)
+    if name == "pga_ratio":
+        return pga / (GRAVITY * tan_alpha)
+    p = np.sqrt(3 * GRAVITY / (4 * np.asarray(size)))
+    return pgv * p / (GRAVITY * tan_alpha)
+
+
+def _integral_measure(motion, name):
+    """PGD, Arias intensity, CAV or D5-95, from the exact integrals of the
+    motion's samples."""
     samples = motion_samples(motion)
     v, d, square, absolute = _integrals(samples.rows, samples.dt, samples.length)
     if name == "pgd":

@@ -42,6 +42,7 @@ from ._model import (
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
+    RESPONSE_FIELDS,
     REST_TOLERANCE,
     RTOL,
     Outcome,
@@ -54,16 +55,7 @@ from ._xla import compiler_accepts
 # The name scope of the loop that steps a chunk's lanes (`_Chunk.steps`): on
 # the CPU, XLA compiles it as one kernel (see `_xla.py`).
 STEP_LOOP = "lane_steps"
-_FIELDS = (
-    "outcome",
-    "max_rotation",
-    "max_base_displacement",
-    "impacts",
-    "uplift_time",
-    "status",
-    "steps",
-    "segments",
-)
+_FIELDS = RESPONSE_FIELDS
 
 
 class _Lanes(eqx.Module):

@@ -279,6 +279,19 @@ class History(eqx.Module):
     alpha: float  # the block's alpha (rad), to plot theta / alpha
 
 
+# The per-analysis numbers of a `Response` (a map holds one of each per cell).
+RESPONSE_FIELDS = (
+    "outcome",
+    "max_rotation",
+    "max_base_displacement",
+    "impacts",
+    "uplift_time",
+    "status",
+    "steps",
+    "segments",
+)
+
+
 class Response(eqx.Module):
     """The result of one analysis (`simulate`), or of a batch of analyses.
 

@@ -46,6 +46,7 @@ from ._model import (
 from ._results import (
     ATOL,
     MAX_SEGMENTS,
+    RESPONSE_FIELDS,
     REST_TOLERANCE,
     RTOL,
     EventKind,
@@ -212,17 +213,7 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
     # rows run out, the analysis stops unfinished (MAX_SEGMENTS), never silently.
     passes = 3 * opts.max_segments + 1
     padded = jnp.concatenate([grid, jnp.full(_WINDOW, jnp.inf, grid.dtype)])
-    zero = jnp.zeros((), grid.dtype)
-    rows = dict(
-        grid_y=jnp.zeros((padded.size, size), grid.dtype),
-        grid_pass=jnp.full(padded.size, -1),
-        end_t=jnp.zeros(passes, grid.dtype),
-        before_y=jnp.zeros((passes, size), grid.dtype),
-        after_y=jnp.zeros((passes, size), grid.dtype),
-        before_regime=jnp.zeros(passes, grid.dtype),
-        after_regime=jnp.zeros(passes, grid.dtype),
-        kind=jnp.zeros(passes, c0.kind.dtype),
-    )
+    rows = _empty_rows(padded, passes, size, c0.kind.dtype)
 
     def cond(state):
         c, k, _ = state
@@ -232,43 +223,13 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
         c, k, rows = state
         sol = _solve_segment(c, block, base, motion, duration, opts, dense=True)
         new = transition(c, sol, block, base, motion, duration, opts)
-        t0, t1 = c.t, new.t
-        first = jnp.searchsorted(grid, t0, side="right")
-        stop = jnp.searchsorted(grid, t1, side="left")
-
-        # Samples first..stop - 1 lie inside the segment; "sample" stop is
-        # its end, t1 (one evaluation of the dense output in the program).
-        def sample(inner):
-            i, ys, at, end = inner
-            index = i + jnp.arange(_WINDOW)
-            ts = jax.lax.dynamic_slice(padded, (i,), (_WINDOW,))
-            ts = jnp.clip(jnp.where(index == stop, t1, ts), t0, t1)
-            new_ys = jax.vmap(lambda t: _state(sol.evaluate(t)))(ts)
-            inside = (index >= first) & (index < stop)
-            old_ys = jax.lax.dynamic_slice(ys, (i, 0 * i), (_WINDOW, size))
-            old_at = jax.lax.dynamic_slice(at, (i,), (_WINDOW,))
-            ys = jax.lax.dynamic_update_slice(
-                ys, jnp.where(inside[:, None], new_ys, old_ys), (i, 0 * i)
-            )
-            at = jax.lax.dynamic_update_slice(at, jnp.where(inside, k, old_at), (i,))
-            at_end = index == stop
-            end = jnp.where(at_end.any(), new_ys[jnp.argmax(at_end)], end)
-            return i + _WINDOW, ys, at, end
-
-        _, grid_y, grid_pass, end_y = jax.lax.while_loop(
-            lambda inner: inner[0] <= stop,
-            sample,
-            (
-                jnp.minimum(first, stop),
-                rows["grid_y"],
-                rows["grid_pass"],
-                jnp.zeros(size, grid.dtype),
-            ),
+        grid_y, grid_pass, end_y = _sampled(
+            sol, grid, padded, c.t, new.t, k, rows["grid_y"], rows["grid_pass"]
         )
         rows = rows | dict(
             grid_y=grid_y,
             grid_pass=grid_pass,
-            end_t=rows["end_t"].at[k].set(t1),
+            end_t=rows["end_t"].at[k].set(new.t),
             before_y=rows["before_y"].at[k].set(end_y),
             after_y=rows["after_y"].at[k].set(_state(new.y)),
             before_regime=rows["before_regime"].at[k].set(_regime(c)),
@@ -283,9 +244,67 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
         start_y=_state(c0.y),
         start_regime=_regime(c0),
         start_rocked=c0.rocked,
-        start_t=c0.t + zero,
+        start_t=c0.t + jnp.zeros((), grid.dtype),
         alpha=block.alpha,
     )
+    return response(c, block, opts), _with_ground_and_z(rows, padded, base, motion)
+
+
+def _empty_rows(padded, passes: int, size: int, kind_dtype) -> dict:
+    """The recorded rows before the first segment: the states at the sample
+    times `padded` and the pass that wrote each (-1: none), and per pass its
+    end time, the states before and after its transition, their regimes and
+    the event's kind."""
+    dtype = padded.dtype
+    return dict(
+        grid_y=jnp.zeros((padded.size, size), dtype),
+        grid_pass=jnp.full(padded.size, -1),
+        end_t=jnp.zeros(passes, dtype),
+        before_y=jnp.zeros((passes, size), dtype),
+        after_y=jnp.zeros((passes, size), dtype),
+        before_regime=jnp.zeros(passes, dtype),
+        after_regime=jnp.zeros(passes, dtype),
+        kind=jnp.zeros(passes, kind_dtype),
+    )
+
+
+def _sampled(sol, grid, padded, t0, t1, k, grid_y, grid_pass):
+    """The segment's dense output `sol` (from t0 to t1, pass k) at the sample
+    times of `grid` inside it, written into `grid_y` and `grid_pass`, and its
+    state at t1, `_WINDOW` evaluations at a time."""
+    size = grid_y.shape[1]
+    first = jnp.searchsorted(grid, t0, side="right")
+    stop = jnp.searchsorted(grid, t1, side="left")
+
+    # Samples first..stop - 1 lie inside the segment; "sample" stop is its
+    # end, t1 (one evaluation of the dense output in the program).
+    def sample(inner):
+        i, ys, at, end = inner
+        index = i + jnp.arange(_WINDOW)
+        ts = jax.lax.dynamic_slice(padded, (i,), (_WINDOW,))
+        ts = jnp.clip(jnp.where(index == stop, t1, ts), t0, t1)
+        new_ys = jax.vmap(lambda t: _state(sol.evaluate(t)))(ts)
+        inside = (index >= first) & (index < stop)
+        old_ys = jax.lax.dynamic_slice(ys, (i, 0 * i), (_WINDOW, size))
+        old_at = jax.lax.dynamic_slice(at, (i,), (_WINDOW,))
+        ys = jax.lax.dynamic_update_slice(
+            ys, jnp.where(inside[:, None], new_ys, old_ys), (i, 0 * i)
+        )
+        at = jax.lax.dynamic_update_slice(at, jnp.where(inside, k, old_at), (i,))
+        at_end = index == stop
+        end = jnp.where(at_end.any(), new_ys[jnp.argmax(at_end)], end)
+        return i + _WINDOW, ys, at, end
+
+    start = (jnp.minimum(first, stop), grid_y, grid_pass, jnp.zeros(size, grid.dtype))
+    _, grid_y, grid_pass, end_y = jax.lax.while_loop(
+        lambda inner: inner[0] <= stop, sample, start
+    )
+    return grid_y, grid_pass, end_y
+
+
+def _with_ground_and_z(rows: dict, padded, base, motion) -> dict:
+    """The rows with x_g'' at every recorded time and, on a hysteretic base,
+    the Bouc-Wen z of every recorded state."""
     times = jnp.concatenate([padded, rows["end_t"]])
     # Rows beyond the grid (padding) read the motion at t = 0, not at inf.
     rows["acceleration"] = jax.vmap(motion.acceleration)(
@@ -296,19 +315,8 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
         states = jnp.concatenate([rows["grid_y"], rows["before_y"], rows["after_y"]])
         rows["z"] = jax.vmap(base.hysteretic)(states[:, 2:])
         rows["start_z"] = base.hysteretic(rows["start_y"][2:])
-    return response(c, block, opts), rows
+    return rows
 
-
-_RESPONSE_FIELDS = (
-    "outcome",
-    "max_rotation",
-    "max_base_displacement",
-    "impacts",
-    "uplift_time",
-    "status",
-    "steps",
-    "segments",
-)
 
 # The programs of `_record` made in this process, by the structure and shapes
 # of their arguments (see `_recording_program`).
@@ -334,7 +342,7 @@ def _make_recording_program(treedef, specs):
         result, rows = _record(*jax.tree_util.tree_unflatten(treedef, leaves))
         # Plain containers out: a kept program's output structure is pickled,
         # and a Module's would not read back.
-        return {f: getattr(result, f) for f in _RESPONSE_FIELDS}, rows
+        return {f: getattr(result, f) for f in RESPONSE_FIELDS}, rows
 
     options = _compiler_options()
     static = _cache.static_key(treedef)
