@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import optimistix as optx
 from jaxtyping import Array
 
-from ._ground import AbstractGroundMotion
+from ._signal import AbstractSignal
 
 # Diffrax's `PIDController` defaults.
 _SAFETY = 0.9
@@ -77,13 +77,13 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
 
 class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
     """A step-size controller whose steps end at the motion's kinks (a
-    record's sample times; `AbstractGroundMotion.step_end`), as Diffrax's
+    record's sample times; `AbstractSignal.step_end`), as Diffrax's
     `step_ts` do, but with the next kink found from the step's start alone
     (`next_kink`): `step_ts` sorts and searches all of them in every solve, a
     cost that grew with the record."""
 
     controller: StepSizeController
-    motion: AbstractGroundMotion
+    motion: AbstractSignal
     quiet_below: jax.Array | None = None
 
     @property

@@ -29,13 +29,14 @@ from ._isolators import AbstractIsolator
 from ._misc import is_count
 from ._record import Record
 from ._results import ATOL, RTOL, Outcome, Response, SolverOptions
+from ._scene import prepare
 from ._simulate import run
 
 
 def _pairs(blocks: Block, motions: AbstractGroundMotion):
     """Every (block, motion) pair as one lane: leaves of shape (n_blocks
     n_motions,), and the motions' `jax.vmap` in_axes. One record is shared by
-    every lane; a suite's lanes read its records in place (`Record.row`)."""
+    every lane; a suite's lanes read its records in place (`RecordSignal.row`)."""
     shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
     nb = int(np.prod(shape))
     of_suite = isinstance(motions, Record) and bool(motions.batch_shape)
@@ -53,8 +54,8 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
         return jnp.tile(jnp.broadcast_to(jnp.asarray(x), (nm,)), nb)
 
     lane_blocks = jax.tree_util.tree_map(tile_blocks, blocks)
-    if of_suite:  # (its table of peaks: computed once by `run`, unbatched)
-        suite = motions.unlabeled()
+    if of_suite:  # (its table of peaks: computed once, unbatched)
+        suite = prepare(motions)
         return (
             lane_blocks,
             suite.row(tile_motions(jnp.arange(nm))),

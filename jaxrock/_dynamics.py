@@ -12,9 +12,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._block import Block
-from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import GRAVITY, computed_once
+from ._scene import fixed_base
+from ._signal import AbstractAcceleration
 from ._trig import sincos
 
 
@@ -35,7 +36,7 @@ class Args(eqx.Module):
 
     block: Block
     base: AbstractIsolator
-    motion: AbstractGroundMotion
+    motion: AbstractAcceleration  # a signal, or one value of x_g'' (`_flat`)
     phase: jnp.ndarray
     sign: jnp.ndarray
     max_base_displacement: jnp.ndarray  # running max |u| so far (m)
@@ -64,7 +65,7 @@ def vector_field(t, y, args: Args):
     c1, s1 = _geometry(block, theta, s)
     ag = args.motion.acceleration(t)
     j = 4.0 / 3.0 * block.size**2
-    if base.n_states == 0:  # a fixed base
+    if fixed_base(base):
         theta_ddot = -(c1 * ag + GRAVITY * s1) / j
         return (
             jnp.where(rocking, theta_dot, 0.0),
@@ -88,18 +89,18 @@ def vector_field(t, y, args: Args):
 
 def base_acceleration_bound(t, window, base_state, base, motion):
     """A bound of |u'' + x_g''| over [t, t + window] (m/s^2): on a fixed base
-    the ground's (`AbstractGroundMotion.acceleration_bound`); on an isolator
+    the ground's (`AbstractSignal.acceleration_bound`); on an isolator
     the base's acceleration at t, which the isolator's force keeps smooth
     (its rate of change is bounded by the state, and the windows of the rest
     rule last milliseconds)."""
-    if base.n_states == 0:
+    if fixed_base(base):
         return motion.acceleration_bound(t, t + window)
     return jnp.abs(absolute_base_acceleration(t, base_state, base, motion))
 
 
 def absolute_base_acceleration(t, base_state, base, motion):
     """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
-    if base.n_states == 0:  # a fixed base
+    if fixed_base(base):
         a = motion.acceleration(t)
     else:
         a = -base.force(base_state)

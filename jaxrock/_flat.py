@@ -9,7 +9,7 @@ the same solver and step-size controller (Tsit5 and `StepSizeController` by
 default);
 the same event conditions are checked at the step's end, an event is located
 on the step's dense output by bracketed Newton, and `transition` applies it
-exactly as in the segment loop. `_maps._map_chunk` refills finished lanes.
+exactly as in the segment loop. `_chunk.map_chunk` refills finished lanes.
 For speed on small systems the Runge-Kutta stages are unrolled (`_erk_step`).
 Most steps end with no event: their lanes only move on (`move_on`), and only
 the others (an event, a segment's end) run the root find and `transition`,
@@ -25,7 +25,6 @@ import numpy as np
 from ._controller import KinkClip
 from ._dynamics import Args, Phase, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
-from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import computed_once, is_none, where_lanes
 from ._model import (
@@ -42,6 +41,8 @@ from ._model import (
     transition,
     with_start_conditions,
 )
+from ._scene import fixed_base, rest_jumps
+from ._signal import AbstractAcceleration, accelerations_at
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -63,7 +64,7 @@ def _stage_times(tableau, t0, t1):
     return [t0] + [t0 + c * h for c in tableau.c]
 
 
-class _Known(AbstractGroundMotion):
+class _Known(AbstractAcceleration):
     """The ground's acceleration at one time, already computed: what a stage of
     `_erk_step` or a condition at a step's end reads of the motion (read at
     all of a step's times together in `_attempt`: `step_accelerations`)."""
@@ -72,13 +73,6 @@ class _Known(AbstractGroundMotion):
 
     def acceleration(self, t):
         return jnp.broadcast_to(self.value, jnp.shape(t))
-
-    def acceleration_bound(self, t0, t1):
-        raise NotImplementedError
-
-    @property
-    def end_time(self):
-        raise NotImplementedError
 
 
 def _with_ground(args: Args, value) -> Args:
@@ -181,7 +175,8 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     dt = jnp.minimum(c.dt, dtmax)
     # (A block at rest: where |x_g''| may reach its uplift level, carried.)
     level = quiet_level(c, block, base)
-    kink = motion.next_kink(t0, level, c.quiet_end)
+    kinks = motion.limits_steps(level is not None)
+    kink = motion.next_kink(t0, level, c.quiet_end) if kinks else None
     t1 = t0 + dt if kink is None else motion.step_end(t0, dt, kink)
     t1 = jnp.minimum(t1, t_stop)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
@@ -193,7 +188,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         if all(0 <= c <= 1 for c in solver.tableau.c):
             ground = motion.step_accelerations(times)
         else:
-            ground = AbstractGroundMotion.step_accelerations(motion, times)
+            ground = accelerations_at(motion, times)
         args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
         y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args, ground)
         y1, y_error = computed_once((y1, y_error))  # read by most of the step
@@ -237,10 +232,10 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     base_end = None if y0[2] is None else jnp.where(keep, y1[2], y0[2])
     moving = moves_on(c, t_end, base_end, failed, base, motion, duration, opts)
     searches = jnp.asarray(False)
-    if motion.translation_tables() is not None:
+    if rest_jumps(motion):
         k, exact = motion.sample_at(t0)
         resting = active & (c.phase == Phase.TRANSLATION)
-        searches = resting & exact & (k >= c.quiet_end)
+        searches = resting & exact & (k >= c.search_from)
     plain = ~before & ~stale & ~searches & moving
     return _Attempt(
         t0,
@@ -432,13 +427,13 @@ def _finish(c, a: _Attempt, located, jump, block, base, motion, duration, opts):
     # (A redo needs an event: `limit` of other lanes is unused.)
     new = transition(c, sol, block, base, motion, duration, opts, limit)
     if jump is not None:
-        searched = jnp.where(a.searches, jump.quiet_end, c.quiet_end)
+        searched = jnp.where(a.searches, jump.search_from, c.search_from)
         new = eqx.tree_at(
-            lambda n: (n.max_u, n.quiet_end),
+            lambda n: (n.max_u, n.search_from),
             new,
             (
                 jnp.where(jump.go, jnp.maximum(new.max_u, jump.max_u), new.max_u),
-                jnp.where(event, -1.0, searched),
+                jnp.where(event, 0.0, searched),
             ),
         )
     return with_start_conditions(new, block, base, motion)
@@ -452,19 +447,20 @@ _SEARCH_AGAIN = 16
 class _Jump(eqx.Module):
     """A lane at rest on an isolated base that skips samples (`_rest_jump`):
     whether it does (`go`), to where (t, its base state, max |u| there) and
-    the sample where it searches next (`Carry.quiet_end`)."""
+    the sample where it searches next (`Carry.search_from`)."""
 
     go: jax.Array
     t: jax.Array
     base_state: jax.Array
     max_u: jax.Array
-    quiet_end: jax.Array
+    search_from: jax.Array
 
 
 def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
     """A lane at rest at sample k on a linear isolator, under a record with
-    `translation_tables`, jumps to the first sample interval m over which the
-    block could uplift or |u| reach a new maximum, if m >= k + 2.
+    translation tables (`_scene.rest_jumps`), jumps to the first sample
+    interval m over which the block could uplift or |u| reach a new maximum,
+    if m >= k + 2.
 
     The base state is y = y_p + h: y_p tabulated, h a free vibration (exact,
     `free_vibration`) whose bounds (`free_vibration_bounds`) lower the
@@ -523,18 +519,11 @@ def _batch_size(lanes: int, base: AbstractIsolator) -> int:
     return min(_BATCH_HYSTERETIC if base.hysteretic_state else _BATCH, lanes)
 
 
-class _Still(AbstractGroundMotion):
+class _Still(AbstractAcceleration):
     """No ground motion: what the root find of rocking lanes reads of it."""
 
     def acceleration(self, t):
         return jnp.zeros_like(t)
-
-    def acceleration_bound(self, t0, t1):
-        return jnp.zeros_like(t0)
-
-    @property
-    def end_time(self):
-        return jnp.asarray(0.0)
 
 
 class _ForceFree(AbstractIsolator):
@@ -595,7 +584,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
-    if sub.args.base.n_states == 0:  # a fixed base
+    if fixed_base(sub.args.base):
         return jax.lax.cond(
             translating,
             lambda: locate(sub, motion, motion_axes),
@@ -642,9 +631,9 @@ def _moved(c, a: _Attempt, block, base, motion, in_axes):
 
 
 def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration):
-    """`_rest_jump` of a batch's lanes (None: the motion has no
-    `translation_tables`), computed only if one of them searches."""
-    if motion.translation_tables() is None:
+    """`_rest_jump` of a batch's lanes (None: the scene has no
+    `rest_jumps`), computed only if one of them searches."""
+    if not rest_jumps(motion):
         return None
     jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None))
     block, base = sub.args.block, sub.args.base
@@ -656,7 +645,7 @@ def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration):
             sub.t0,
             sub.y0[2],
             sub_c.max_u,
-            sub_c.quiet_end,
+            sub_c.search_from,
         ),
     )
 

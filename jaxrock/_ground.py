@@ -1,17 +1,14 @@
 """Ground motions: the Mavroeidis-Papageorgiou pulse and recorded accelerograms."""
 
 import abc
-from typing import ClassVar
 
-import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Float
 
 from ._misc import (
     AbstractChecked,
     Constraint,
     broadcast_batch_shape,
-    computed_once,
     describe_values,
     finite,
     greater_than_zero,
@@ -55,79 +52,10 @@ class AbstractGroundMotion(AbstractChecked):
         """A bound of |x_g''| over [t0, t1] (m/s^2; t1 >= t0), tight when the
         interval is short, inf when none is cheap (the rest rule reads it)."""
 
-    def next_kink(
-        self, t: Float[Array, ""], quiet_below=None, quiet_end=None
-    ) -> Float[Array, ""] | None:
-        """Where the step that starts at t must end (s; inf: anywhere), or None
-        (no limit at all). A record's steps end at its samples, the kinks of
-        x_g''. `quiet_below` (m/s^2; an array: a lane's own level, 0 for a
-        rocking lane), for a block at rest on a fixed base, which uplifts only
-        where |x_g''| reaches that level: a step may then end anywhere before
-        |x_g''| could reach it (a record skips samples), and must end before
-        it (a pulse: no short excursion beyond the level hides inside a step,
-        between two step ends where the uplift conditions are checked).
-        `quiet_end`: `quiet_end(t0, level)` of an earlier t0 <= t and the
-        resting block's level, read where `quiet_holds(t, quiet_end)` and
-        `quiet_below` > 0, so that a step need not search again (None:
-        search)."""
-        del t, quiet_below, quiet_end
-        return None
-
-    def step_end(self, t0, dt, kink) -> Float[Array, ""]:
-        """The end of a step of at most dt (s) from t0 that stops at `kink`
-        (`next_kink`, s; inf: none): min(t0 + dt, kink). (A closed form's kink
-        only bounds where a block at rest could uplift, and moves with t0.)"""
-        return jnp.minimum(t0 + dt, kink)
-
-    def quiet_holds(self, t: Float[Array, ""], quiet_end) -> Bool[Array, ""]:
-        """Whether `quiet_end` (of an earlier time) holds at t, where
-        `next_kink` reads it."""
-        del quiet_end
-        return jnp.ones_like(t, dtype=bool)
-
-    def quiet_end(self, t: Float[Array, ""], level) -> Float[Array, ""]:
-        """Where |x_g''| may first reach `level` (m/s^2) from t on, in the
-        form `next_kink` reads (a record: the sample's index); it holds for
-        any later t up to there. NaN: `next_kink` needs none."""
-        del level
-        return jnp.full_like(t, jnp.nan)
-
-    def with_peaks(self) -> "AbstractGroundMotion":
-        """The motion with what `next_kink(t, quiet_below)` reads, computed
-        once before an analysis's loop."""
-        return self
-
-    def with_translation(self, base) -> "AbstractGroundMotion":
-        """The motion with `base`'s response in translation to it
-        (`AbstractIsolator.translation_tables`), if any, computed once before
-        a map's loop (a record's: see `Record.with_translation`)."""
-        del base
-        return self
-
-    def translation_tables(self):
-        """What `with_translation` added (None: nothing)."""
-        return None
-
-    @property
-    def sample_count(self) -> int:
-        """Samples of the motion (a record's; 0 for a closed form)."""
-        return 0
-
     @property
     def start_time(self) -> Float[Array, ""]:
         """When the excitation starts (s)."""
         return jnp.zeros_like(self.end_time)
-
-    # One motion's data are shared by every cell of a map (a record's samples),
-    # not gathered per cell.
-    shared_by_cells: ClassVar[bool] = False
-
-    def step_accelerations(self, times):
-        """x_g'' (m/s^2) at the times of one step of the flat loop of maps: its
-        stage times and its end, within [t0, t1] (`times[0]` = t0,
-        `times[-1]` = t1). One vectorized evaluation: one copy of a closed
-        form in the program, not one a stage."""
-        return computed_once(jax.vmap(self.acceleration)(jnp.stack(times)))
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -152,26 +80,28 @@ class AbstractGroundMotion(AbstractChecked):
         return None
 
 
-def _below_level_until(motion, t, quiet_below, curvature, start):
-    """The end of the step from t of a closed-form motion (see `next_kink`):
-    with a = x_g''(t), a' its rate and |(x_g'')''| <= `curvature` (m/s^4, a
-    bound), |x_g''(t + h)| <= |a| + |a'| h + curvature h^2 / 2, which stays
-    below `quiet_below` for h < 2 m / (|a'| + sqrt(a'^2 + 2 curvature m)),
-    m = quiet_below - |a|. Before `start`, where x_g'' begins with a kink,
-    the step ends there. At least `max_step` / 1000: an excursion beyond the
-    level by less than curvature (max_step / 1000)^2 / 2 may still hide."""
-    if quiet_below is None:
-        return None
-    a, rate = jax.jvp(motion.acceleration, (t,), (jnp.ones_like(t),))
-    margin = jnp.maximum(quiet_below - jnp.abs(a), 0.0)
-    root = jnp.sqrt(rate * rate + 2.0 * curvature * margin)
-    h = 2.0 * margin / jnp.maximum(jnp.abs(rate) + root, jnp.finfo(t.dtype).tiny)
-    h = jnp.maximum(h, 1e-3 * motion.max_step)
-    end = jnp.where(t < start, jnp.minimum(t + h, start), t + h)
-    return jnp.where((quiet_below > 0) & (t < motion.end_time), end, jnp.inf)
+class AbstractPulse(AbstractGroundMotion):
+    """A closed-form pulse: x_g'' smooth within [`start_time`, `end_time`],
+    with a bound of its curvature (`acceleration_curvature`) and a largest
+    step (`max_step`).
+
+    The bound lets a block at rest on a fixed base step to just before
+    |x_g''| could reach its uplift level (`_signal.ClosedFormSignal`).
+    """
+
+    @property
+    @abc.abstractmethod
+    def acceleration_curvature(self) -> Float[Array, "..."]:
+        """A bound of |(x_g'')''| over the pulse (m/s^4)."""
+
+    @property
+    @abc.abstractmethod
+    def max_step(self) -> Float[Array, "..."]:
+        """Largest step while the ground moves (s), so that no excursion of
+        |x_g''| beyond a level hides inside a step."""
 
 
-class MPPulse(AbstractGroundMotion):
+class MPPulse(AbstractPulse):
     """Mavroeidis & Papageorgiou (2003) near-fault velocity pulse.
 
     The ground velocity (m/s), for |t - t0| <= gamma / (2 f_p) and zero
@@ -274,14 +204,14 @@ class MPPulse(AbstractGroundMotion):
         jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
-    def next_kink(self, t, quiet_below=None, quiet_end=None):
+    @property
+    def acceleration_curvature(self):
         # |(x_g'')''| <= |A| pi f_p / gamma (2 pi f_p)^2
         #   (1/gamma^2 + 3/gamma + 3 + 2 gamma).
         w = 2.0 * jnp.pi * self.frequency
         g = self.gamma
         curvature = jnp.abs(self.amplitude) * 0.5 * w**3 / g
-        curvature = curvature * (1.0 / g**2 + 3.0 / g + 3.0 + 2.0 * g)
-        return _below_level_until(self, t, quiet_below, curvature, self.start_time)
+        return curvature * (1.0 / g**2 + 3.0 / g + 3.0 + 2.0 * g)
 
     def scaled(self, factor) -> "MPPulse":
         factor = scale_factors(factor)
@@ -319,7 +249,7 @@ class MPPulse(AbstractGroundMotion):
         return 1.0 / (32.0 * self.frequency)
 
 
-class SinePulse(AbstractGroundMotion):
+class SinePulse(AbstractPulse):
     """One-sine acceleration pulse, x_g'' = a_p sin(2 pi f_p t) for 0 <= t <= 1 / f_p.
 
     The ground acceleration (m/s^2) is zero outside the pulse, which lasts
@@ -360,9 +290,9 @@ class SinePulse(AbstractGroundMotion):
         jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
 
-    def next_kink(self, t, quiet_below=None, quiet_end=None):
-        curvature = jnp.abs(self.amplitude) * (2.0 * jnp.pi * self.frequency) ** 2
-        return _below_level_until(self, t, quiet_below, curvature, 0.0)
+    @property
+    def acceleration_curvature(self):
+        return jnp.abs(self.amplitude) * (2.0 * jnp.pi * self.frequency) ** 2
 
     def scaled(self, factor) -> "SinePulse":
         factor = scale_factors(factor)

@@ -44,6 +44,7 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
+from ._scene import carries_conditions, fixed_base
 
 
 class Carry(eqx.Module):
@@ -74,14 +75,15 @@ class Carry(eqx.Module):
     theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
     # A redo (see `transition`) ends the segment's steps here (s); inf: no redo.
     t_limit: Float[Array, ""]
-    # A fixed base: where |x_g''| may first reach the block's uplift level
-    # (`quiet_end`), found from an earlier time; NaN: none. Only the flat loop
-    # of maps reads it (while `motion.quiet_holds`), and keeps it current in
-    # its event batches (`_flat._finish`); `simulate` searches at every step
-    # and leaves it as `initial_carry` set it. An isolated base under a
-    # motion with `translation_tables`: the sample from which a lane at rest
-    # searches for a jump (`_flat._rest_jump`).
+    # On a fixed base: where |x_g''| may first reach the block's uplift level,
+    # found from an earlier time (the signal's `quiet_end`). Only the flat
+    # loop of maps reads it (while the signal's `quiet_holds`), and keeps it
+    # current in its event batches (`_flat._end_lanes`); `simulate` searches
+    # at every step.
     quiet_end: Float[Array, ""]
+    # Where the scene has `rest_jumps`: the first sample at which a lane at
+    # rest searches for a jump (`_flat._rest_jump`).
+    search_from: Float[Array, ""]
     # On a base with a hysteretic state (costly conditions: a friction
     # pendulum's z), the event conditions' values at (t, y) (`start_conditions`),
     # else None. Only the flat loop of maps reads them, as the next step's
@@ -134,6 +136,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         theta_ref=zero,
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
         quiet_end=quiet_end(t, block, base, motion),
+        search_from=zero,
     )
     return with_start_conditions(c, block, base, motion)
 
@@ -164,7 +167,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = StepSizeController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
     quiet_below = quiet_level(c, block, base)
-    if motion.next_kink(c.t, quiet_below) is not None:
+    if motion.limits_steps(quiet_below is not None):
         controller = KinkClip(controller, motion, quiet_below)
     return active, args, conditions, t_stop, dtmax, controller
 
@@ -181,7 +184,7 @@ def with_start_conditions(c: Carry, block, base, motion) -> Carry:
     """The carry with its `start_conditions`: each event condition (in the
     order of `event_conditions`) at (c.t, c.y), on a base with a hysteretic
     state; unchanged (None) on others."""
-    if not base.hysteretic_state:
+    if not carries_conditions(base):
         return c
     args = segment_args(c, block, base, motion)
     conditions = jax.tree_util.tree_leaves(event_conditions(base))
@@ -193,7 +196,7 @@ def quiet_level(c: Carry, block, base):
     """|x_g''| below which nothing happens: a block at rest on a fixed base
     uplifts only where |x_g''| reaches g tan(alpha); 0 while it rocks; None
     on an isolated base (its state moves)."""
-    if base.n_states > 0:
+    if not fixed_base(base):
         return None
     resting = c.phase == Phase.TRANSLATION
     return jnp.where(resting, block.uplift_acceleration, 0.0)
@@ -201,12 +204,10 @@ def quiet_level(c: Carry, block, base):
 
 def quiet_end(t, block, base, motion):
     """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
-    uplift level from t on (`motion.quiet_end`); on an isolated base -1 under
-    a motion with `translation_tables` (a lane at rest searches at its next
-    sample), else NaN."""
-    if base.n_states > 0:
-        searched = motion.translation_tables() is not None
-        return jnp.full_like(t, -1.0 if searched else jnp.nan)
+    uplift level from t on (the signal's `quiet_end`) on a fixed base; NaN
+    on an isolated base (never read)."""
+    if not fixed_base(base):
+        return jnp.full_like(t, jnp.nan)
     return motion.quiet_end(t, block.uplift_acceleration)
 
 
@@ -249,7 +250,7 @@ class Conditions(NamedTuple):
 
 def event_conditions(base) -> Conditions:
     """The conditions of a segment on `base` (a fixed base has no base state)."""
-    if base.n_states == 0:
+    if fixed_base(base):
         return Conditions(condition_angle, condition_rate, condition_guard)
     peak = base.peak_condition() or condition_base
     return Conditions(
@@ -472,6 +473,7 @@ def _advance(
         kind=_event_kind(ev, rest, end.failed, still),
         t_limit=jnp.where(end.event | (t >= c.t_limit), jnp.inf, c.t_limit),
         quiet_end=c.quiet_end,
+        search_from=c.search_from,
         start_conditions=c.start_conditions,
     )
 

@@ -15,6 +15,7 @@ from ._misc import (
     is_count,
     parameter,
 )
+from ._scene import sample_count
 
 
 class Outcome(IntEnum):
@@ -139,7 +140,7 @@ def _max_steps_for(motion, max_steps: int | None) -> int:
     never a limit a valid record reaches."""
     if max_steps is not None:
         return max_steps
-    return max(MAX_STEPS, 1 << (4 * motion.sample_count).bit_length())
+    return max(MAX_STEPS, 1 << (4 * sample_count(motion)).bit_length())
 
 
 class SolverOptions(AbstractChecked):

@@ -54,6 +54,7 @@ from ._results import (
     Response,
     SolverOptions,
 )
+from ._scene import prepare
 from ._xla import compiler_accepts
 
 
@@ -169,7 +170,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
         return transition(c, sol, block, base, motion, duration, opts)
 
     valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
-    motion = motion.with_peaks()
+    motion = prepare(motion)
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
     return response(carry, block, opts)
 
@@ -205,7 +206,7 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
     `Response` and a dict of the recorded rows (`_history` orders them).
     """
     valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
-    motion = motion.with_peaks()
+    motion = prepare(motion)
     c0 = initial_carry(block, base, motion, valid)
     size = _state(c0.y).size
     # Each counted segment can follow a redo and the segment up to its limit,

@@ -11,7 +11,7 @@ energy E = h'^2 / 2 + omega^2 h^2 / 2 never grows (`free_vibration`).
 y_p(t_k); the largest |u_p| over [0, t_k] (its peaks between samples located
 on the closed form); and, for every sample interval [t_k, t_k+1], bounds of
 the absolute base acceleration |A_p| = |x_g'' + u_p''| and of |u_p| over it,
-as tables of their maxima over ranges of 2^l intervals (`Record.with_peaks`'
+as tables of their maxima over ranges of 2^l intervals (`RecordSignal.with_peaks`'
 form). A bound is the larger end value plus dt^2 / 8 max |g''| (the error of
 linear interpolation); g'' = u_p'' or A_p'' is that of a free vibration
 started from (u_p'', u_p''') at t_k, bounded by its energy.
@@ -76,9 +76,9 @@ class TranslationTables(eqx.Module):
     `states`: (u_p, u_p') at the samples (m, m/s). `displacement_max`: max
     |u_p| over [0, t_k] (m). `acceleration_peaks` and `displacement_peaks`:
     bounds of |A_p| (m/s^2) and |u_p| (m) over the intervals [k, k + 2^l)
-    (levels l, as `Record.peaks`); inf from the record's last sample on.
+    (levels l, as `RecordSignal.peaks`); inf from the record's last sample on.
     `scaled`: of the records' samples with their factors multiplied out
-    (else read times the factors, see `Record.with_translation`).
+    (else read times the factors, see `RecordSignal.with_translation`).
     """
 
     states: Float[Array, "*records n 2"]

@@ -12,6 +12,7 @@ import pytest
 
 import jaxrock as jr
 from jaxrock import _model
+from jaxrock._scene import prepare
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 
@@ -44,7 +45,7 @@ def test_rotation_past_overturning_without_the_event_is_a_failure():
     """The last line of defence: whatever missed an event, |theta| > pi / 2
     without overturning never comes back as SUCCESS."""
     block, base = jr.Block(3.0, 1.0), jr.FixedBase()
-    c = _model.initial_carry(block, base, PULSE)
+    c = _model.initial_carry(block, base, prepare(PULSE))
     lost = eqx.tree_at(
         lambda c: (c.max_theta, c.done), c, (jnp.asarray(2.0), jnp.asarray(True))
     )

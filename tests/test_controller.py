@@ -9,6 +9,7 @@ import pytest
 
 import jaxrock as jr
 from jaxrock._controller import StepSizeController
+from jaxrock._scene import prepare
 
 
 def _decide(controller, t0, t1, y0, y1, y_error, error_order):
@@ -54,7 +55,7 @@ def test_a_nan_error_rejects_the_step():
 
 
 def test_steps_to_a_sample_are_equal_and_end_on_it():
-    record = jr.Record(np.zeros(100), dt=0.01)
+    record = prepare(jr.Record(np.zeros(100), dt=0.01))
     t0 = 0.0133
     kink = float(record.next_kink(jnp.asarray(t0)))
     assert kink == 0.02
@@ -67,6 +68,6 @@ def test_steps_to_a_sample_are_equal_and_end_on_it():
 
 
 def test_a_closed_form_bound_cuts_the_step_without_equal_steps():
-    pulse = jr.near_fault_pulse("Northridge JFA/SN")
+    pulse = prepare(jr.near_fault_pulse("Northridge JFA/SN"))
     assert float(pulse.step_end(0.0, 0.0025, 0.0067)) == 0.0025
     assert float(pulse.step_end(0.0, 0.01, 0.0067)) == 0.0067

@@ -83,7 +83,7 @@ def test_cli_scheduler_without_dask(monkeypatch, tmp_path, capsys):
 def die_once(flag, fn, task):
     """fn(task), but the first task of cells (pilot flag False) to find no
     `flag` file creates it and kills its worker process."""
-    if not task[-1]:
+    if not task.pilot:
         try:
             os.close(os.open(flag, os.O_CREAT | os.O_EXCL))
             os._exit(1)

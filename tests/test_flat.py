@@ -11,6 +11,7 @@ import jaxrock as jr
 from jaxrock._dynamics import Args, Phase, vector_field
 from jaxrock._flat import _dense_in_s, _erk_step
 from jaxrock._misc import computed_once
+from jaxrock._scene import prepare
 
 
 def _rising(base):
@@ -106,10 +107,10 @@ def test_carried_start_conditions_are_the_conditions_at_the_carry():
 
     rng = np.random.default_rng(3)
     t = np.arange(0.0, 4.0, 0.01)
-    record = jr.Record(6.0 * np.sin(15.0 * t) + rng.normal(size=t.size), 0.01)
+    record = prepare(jr.Record(6.0 * np.sin(15.0 * t) + rng.normal(size=t.size), 0.01))
     base = jr.FrictionPendulum(0.1, 2.0, 0.5)
     blocks = jr.Block(jnp.linspace(3.0, 8.0, 8), jnp.linspace(0.5, 2.5, 8))
-    opts = SolverOptions.for_motion(record, 1e-8, 1e-10, None, 400, 1e-6, None)
+    opts = SolverOptions.for_motion(record.record, 1e-8, 1e-10, None, 400, 1e-6, None)
     axes = (0, None, None)
 
     def step(c, _):
@@ -133,7 +134,7 @@ def test_a_records_step_reads_the_line_between_its_samples():
     # A step of the flat loop ends at the next sample: its stages read the
     # line between the two samples around it, as `acceleration` does at each.
     rng = np.random.default_rng(3)
-    record = jr.Record(rng.normal(size=50), 0.02)
+    record = prepare(jr.Record(rng.normal(size=50), 0.02))
     c = np.asarray(diffrax.Tsit5().tableau.c)
     read = jax.jit(lambda ts: jnp.stack(record.step_accelerations(list(ts))))
     exact = jax.jit(jax.vmap(record.acceleration))

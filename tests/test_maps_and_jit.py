@@ -7,7 +7,9 @@ import pytest
 import reference as ref
 
 import jaxrock as jr
-from jaxrock import _layout, _maps, _model, _simulate
+from jaxrock import _layout, _maps, _model, _programs, _simulate
+from jaxrock._chunk import ChunkTask
+from jaxrock._scene import MotionLayout, prepare
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
 LAM = np.array([1.5, 2.5, 3.5, 5.0, 6.5])
@@ -16,7 +18,7 @@ SIZE = np.array([0.3, 1.0, 2.5])
 
 def _compiles() -> int:
     """The chunk loops compiled in this process (one per program and device)."""
-    return len(_maps._PROGRAMS)
+    return len(_programs._PROGRAMS)
 
 
 def test_new_parameters_do_not_recompile():
@@ -135,7 +137,7 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     calls, original = [], _maps._compute_chunk
 
     def counting(task, device=None):
-        calls.append(bool(task[-1]))  # pilot pass or not
+        calls.append(bool(task.pilot))  # pilot pass or not
         return original(task, device)
 
     monkeypatch.setattr(_maps, "_compute_chunk", counting)
@@ -152,7 +154,9 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     )
     lam, r = pad(np.repeat(LAM, SIZE.size)), pad(np.tile(SIZE, LAM.size))
     bases, motions = each(base), each(PULSE)
-    initial = jax.vmap(_model.initial_carry)(jr.Block(lam, r), bases, motions)
+    initial = jax.vmap(lambda b, base, m: _model.initial_carry(b, base, prepare(m)))(
+        jr.Block(lam, r), bases, motions
+    )
     initial = jax.tree_util.tree_map(np.asarray, initial)
     opts = jr.SolverOptions(1e-8, 1e-10, 16384, 2000, 1e-6)
     duration = jr._misc.as_float(float(PULSE.end_time) + 5.0)
@@ -160,7 +164,20 @@ def test_shared_translation_changes_no_bit(monkeypatch):
     one = _maps._numpy(base)  # the base of every cell
     before = _compiles()
     alone = original(
-        (lam, r, bases, motions, None, initial, one, duration, opts, count, pilot)
+        ChunkTask(
+            lam,
+            r,
+            bases,
+            motions,
+            None,
+            initial,
+            one,
+            duration,
+            opts,
+            count,
+            pilot,
+            MotionLayout.PER_CELL,
+        )
     )
     assert _compiles() == before  # the map's own loop
     for k in _maps._FIELDS:

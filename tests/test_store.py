@@ -38,7 +38,7 @@ def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
     original = _maps._compute_chunk
 
     def counting(task, device=None):
-        calls.append(bool(task[-1]))  # pilot pass or not
+        calls.append(bool(task.pilot))  # pilot pass or not
         return original(task, device)
 
     monkeypatch.setattr(_maps, "_compute_chunk", counting)
@@ -123,7 +123,7 @@ def computed(monkeypatch):
     original = _maps._compute_chunk
 
     def counting(task, device=None):
-        calls.append("pilots" if task[-1] else "cells")
+        calls.append("pilots" if task.pilot else "cells")
         return original(task, device)
 
     monkeypatch.setattr(_maps, "_compute_chunk", counting)

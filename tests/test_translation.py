@@ -10,6 +10,7 @@ import scipy.linalg
 import scipy.signal
 
 import jaxrock as jr
+from jaxrock._scene import prepare
 from jaxrock._translation import free_vibration
 
 OMEGA = 2.0 * np.pi / 2.0
@@ -57,7 +58,7 @@ def test_translation_tables_are_exact_and_bound_the_response(damping):
     long = np.cumsum(rng.normal(size=400)) * 0.5
     base = jr.LinearIsolator(2.0, damping, 0.5)
     suite = jr.Record.stack([jr.Record(short, dt), jr.Record(long, dt)])
-    tables = jax.jit(lambda s: s.with_translation(base))(suite).translation
+    tables = jax.jit(lambda s: prepare(s, base))(suite).translation
     for row, samples in enumerate([short, long]):
         n = samples.size
         u, v, omega, xi = _reference(base, samples, dt, sub)

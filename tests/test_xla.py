@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import jaxrock as jr
-from jaxrock import _maps, _xla
+from jaxrock import _chunk, _programs, _xla
+from jaxrock._scene import MotionLayout
 
 
 def _op_names(text: str, pattern: str) -> list[str]:
@@ -32,13 +33,13 @@ def test_the_step_loop_of_a_record_map_is_one_kernel():
     loop (writing a batch's lanes back) would keep it a while loop."""
     t = np.arange(0.0, 4.0, 0.01)
     record = jr.Record(3.0 * np.sin(2 * np.pi * t) * np.exp(-t), 0.01)
-    before = set(_maps._PROGRAMS)
+    before = set(_programs._PROGRAMS)
     jr.behavior_map([3.0, 5.0], [0.5, 1.5], jr.FixedBase(), record, progress=False)
-    programs = [_maps._PROGRAMS[key] for key in set(_maps._PROGRAMS) - before]
+    programs = [_programs._PROGRAMS[key] for key in set(_programs._PROGRAMS) - before]
     assert programs  # compiled (or loaded) here
     for program in programs:
         calls = _op_names(program.as_text(), r' call\(.*xla_cpu_small_call="true"')
-        assert any(name.endswith(f"/{_maps.STEP_LOOP}/while") for name in calls)
+        assert any(name.endswith(f"/{_chunk.STEP_LOOP}/while") for name in calls)
 
 
 @pytest.fixture
@@ -102,8 +103,9 @@ def test_compiler_options_this_xla_does_not_take_are_left_out(monkeypatch):
     assert _xla.compiler_accepts({})
     assert not _xla.compiler_accepts({"xla_cpu_no_such_option": False})
     pulse, base = jr.near_fault_pulse("San Fernando PCD/SN"), jr.FixedBase()
-    assert _maps._compiler_options(base, pulse) == {
+    layout = MotionLayout.of(pulse)
+    assert _programs.compiler_options(base, layout) == {
         "xla_cpu_use_fusion_emitters": False
     }
-    monkeypatch.setattr(_maps, "compiler_accepts", lambda options: False)
-    assert _maps._compiler_options(base, pulse) == {}
+    monkeypatch.setattr(_programs, "compiler_accepts", lambda options: False)
+    assert _programs.compiler_options(base, layout) == {}

@@ -1,0 +1,93 @@
+"""Compiled chunk loops: made once per process and device, kept in jaxrock's
+cache folder between processes."""
+
+import json
+import threading
+
+import jax
+
+from . import _cache, _layout
+from ._chunk import map_chunk
+from ._isolators import AbstractIsolator
+from ._results import RESPONSE_FIELDS
+from ._scene import MotionLayout
+from ._xla import compiler_accepts
+
+# The chunk loops of this process (see `chunk_program`), each made once: a
+# map in another thread that needs a loop being made waits for it.
+_PROGRAMS: dict = {}
+_PROGRAM_LOCKS: dict = {}
+_PROGRAMS_LOCK = threading.Lock()
+# Tracing and lowering are Python, under the GIL: maps in threads take turns,
+# and one traces while another compiles (XLA compiles without the GIL).
+_TRACING = threading.Lock()
+
+
+def chunk_program(treedef, leaves, loop: _layout.Loop):
+    """`map_chunk` for a `ChunkTask` of the structure `treedef` (static fields
+    included) and the shapes and device of `leaves` (jax Arrays), as `loop`,
+    compiled: a function of the leaves that returns the
+    responses' `RESPONSE_FIELDS`, the carries' leaves, and the lane-steps executed and
+    useful.
+
+    Made once per process and device. With jaxrock's cache folder
+    (`_cache.program_folder`) and one local device, the compiled program is
+    kept there, and a later process loads it instead of tracing, lowering and
+    compiling again. A structure that names code outside jaxrock and its
+    dependencies (a user's isolator class) is compiled in every process.
+    """
+    specs = tuple(
+        jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=x.sharding) for x in leaves
+    )
+    key = (treedef, specs, loop)
+    with _PROGRAMS_LOCK:
+        lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
+    with lock:
+        if key not in _PROGRAMS:
+            _PROGRAMS[key] = _make_program(treedef, specs, loop)
+        return _PROGRAMS[key]
+
+
+def _make_program(treedef, specs, loop: _layout.Loop):
+    """`chunk_program`'s function, compiled here or loaded from the folder."""
+
+    task = jax.tree_util.tree_unflatten(treedef, specs)
+    options = compiler_options(task.base, task.layout)
+
+    def program(*leaves):
+        task = jax.tree_util.tree_unflatten(treedef, leaves)
+        responses, carries, executed, useful = map_chunk(task, loop)
+        fields = tuple(getattr(responses, f) for f in RESPONSE_FIELDS)
+        return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
+
+    traced = jax.jit(program, compiler_options=options)
+
+    def lower():
+        with _TRACING:
+            return traced.lower(*specs)
+
+    static = _cache.static_key(treedef)
+    shapes = [(s.shape, str(s.dtype)) for s in specs]
+    key = json.dumps([static, shapes, list(loop), options])
+    if static is None or len(jax.local_devices()) > 1:
+        key = None  # not kept
+    return _cache.compiled("map_chunk", key, lower)
+
+
+def compiler_options(base: AbstractIsolator, layout: MotionLayout) -> dict:
+    """XLA's options for a chunk loop on `base` under a motion laid out as
+    `layout`.
+
+    On the CPU, a loop under a closed-form motion on a base without a
+    hysteretic state compiles with XLA's loop emitters instead of its fusion
+    emitters: it compiles faster and runs about as fast, while records' reads
+    of their samples and a friction pendulum's z run faster with the fusion
+    emitters (the docs' performance page, "Choices in the code").
+    (XLA releases without that option, jaxlib 0.11 on, keep their default.)
+    """
+    if jax.default_backend() != "cpu":
+        return {}
+    if layout is not MotionLayout.PER_CELL or base.hysteretic_state:
+        return {}
+    options = {"xla_cpu_use_fusion_emitters": False}
+    return options if compiler_accepts(options) else {}
