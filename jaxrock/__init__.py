@@ -1,17 +1,22 @@
 """jaxrock: rigid blocks rocking on seismically isolated bases, in JAX.
 
-Importing jaxrock enables JAX's float64 mode (`jax_enable_x64`): every result
-is float64 unless you turn it off again. It also turns on JAX's persistent
-compilation cache in `~/.cache/jaxrock/xla` (a second run reuses the compiled
-programs of the first, and maps their compiled loops), unless JAX's cache is
-configured already; `JAXROCK_CACHE=FOLDER` moves it and `JAXROCK_CACHE=off`
-turns it off. And it has XLA compile each while loop as one kernel on the CPU
-(the loop that steps a map's lanes runs faster: see the documentation's
-performance page) by adding
-`--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=
-1000000000000000` to `XLA_FLAGS`, unless `XLA_FLAGS` sets XLA's backend
-options already, JAX has computed before the import, or
-`JAXROCK_LOOP_KERNELS=off`.
+Importing jaxrock changes three settings of the process (the documentation's
+configuration page says what each does and how to opt out):
+
+- JAX's float64 mode (`jax_enable_x64`) is turned on. jaxrock's tolerances
+  are float64 tolerances: there is no float32 mode, and turning x64 off
+  after the import is not supported.
+- JAX's persistent compilation cache is pointed at `~/.cache/jaxrock/xla`
+  (`$XDG_CACHE_HOME/jaxrock/xla`), with compiled programs kept whole in its
+  `programs/` folder, and entries there that were cut short are deleted;
+  `JAXROCK_CACHE=FOLDER` moves it, `JAXROCK_CACHE=off` turns it off, and a
+  cache configured for JAX already is left as it is.
+- `--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=
+  1000000000000000` is added to `XLA_FLAGS`, so that XLA compiles each while
+  loop on the CPU as one kernel, unless `XLA_FLAGS` sets XLA's backend
+  options already, JAX has computed before the import (a warning says so),
+  or `JAXROCK_LOOP_KERNELS=off`; `JAXROCK_LOOP_KERNELS=flattened` adds
+  `xla_cpu_flatten_after_fusion`.
 """
 
 import importlib.metadata
