@@ -29,7 +29,7 @@ from ._isolators import AbstractIsolator
 from ._misc import is_count
 from ._record import Record
 from ._results import ATOL, RTOL, Outcome, Response, SolverOptions
-from ._scene import prepare
+from ._scene import fixed_base, prepare
 from ._simulate import run
 
 
@@ -377,7 +377,7 @@ def _value_and_grad_of(make_base, scale: "_Scaling", problem: tuple, x: dict):
         return make_base(scale.params(x))
 
     base = base_at(x)
-    if not isinstance(base, AbstractIsolator) or base.n_states == 0:
+    if not isinstance(base, AbstractIsolator) or fixed_base(base):
         raise ValueError(
             "`make_base` must return an isolated base (LinearIsolator, "
             "FrictionPendulum, BilinearIsolator, ...) built from the parameters, "

@@ -1,4 +1,5 @@
-"""Ground motions: the Mavroeidis-Papageorgiou pulse and recorded accelerograms."""
+"""Ground motions: what every motion answers, and the closed-form pulses
+(Mavroeidis-Papageorgiou, one-sine); records are `_record.py`."""
 
 import abc
 

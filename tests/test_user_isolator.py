@@ -73,3 +73,59 @@ def test_out_of_range_and_missing_methods_are_named(page):
 
     with pytest.raises(TypeError, match="force"):
         NoForce()
+
+
+class Spring(jr.AbstractIsolator):
+    """A linear spring without damping, F / M = omega^2 u, omega = 2 pi / T:
+    the least an isolator needs, written here alone."""
+
+    period: jax.Array = jr.parameter("period", "s")
+    mass_ratio: jax.Array = jr.parameter("mass_ratio", "1")
+    n_states = 2  # (u, u')
+
+    def initial_state(self):
+        return jax.numpy.zeros(2, dtype=self.period.dtype)
+
+    def force(self, state):
+        return (2.0 * np.pi / self.period) ** 2 * state[0]
+
+    def rates(self, state, u_ddot):
+        return jax.numpy.stack([state[1], u_ddot])
+
+    @property
+    def block_mass_fraction(self):
+        return self.mass_ratio / (1.0 + self.mass_ratio)
+
+    def free_vibration_bounds(self, state):
+        return np.inf, np.inf
+
+
+def test_a_toy_spring_written_in_a_test_runs_through_simulate_maps_and_jacfwd():
+    lam, size = np.array([2.5, 4.0, 6.0]), np.array([0.4, 1.5])
+    spring = Spring(2.0, 0.5)
+    linear = jr.LinearIsolator(2.0, 0.0, 0.5)  # the same physics, built in
+    bm = jr.behavior_map(lam, size, spring, PULSE, progress=False)
+    assert len(np.unique(bm.outcome)) >= 2  # the comparison means something
+    for i, slenderness in enumerate(lam):
+        for j, r in enumerate(size):
+            ours = jr.simulate(jr.Block(slenderness, r), spring, PULSE)
+            theirs = jr.simulate(jr.Block(slenderness, r), linear, PULSE)
+            assert int(bm.outcome[i, j]) == int(ours.outcome) == int(theirs.outcome)
+            np.testing.assert_allclose(
+                [bm.max_rotation[i, j], ours.max_rotation],
+                float(theirs.max_rotation),
+                rtol=1e-7,
+            )
+
+    def peak_u(period):
+        base = Spring(period, 0.5)
+        opts = dict(rtol=1e-12, atol=1e-14)
+        return jr.simulate(
+            jr.Block(2.5, 0.4), base, PULSE, **opts
+        ).max_base_displacement
+
+    h = 1e-5
+    derivative = float(jax.jacfwd(peak_u)(2.0))
+    central = (float(peak_u(2.0 + h)) - float(peak_u(2.0 - h))) / (2 * h)
+    assert central != 0
+    assert derivative == pytest.approx(central, rel=1e-5)
