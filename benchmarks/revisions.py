@@ -1,15 +1,15 @@
 """Two revisions of jaxrock side by side: the paper's maps (2,440 cells) under
 the San Fernando PCD/SN pulse and the Pacoima Dam 164 record on the fixed
 base, the linear isolator and the friction pendulum, timed by the checked-out
-code and by another git revision (a worktree of it), in fresh processes run
+code (or the revision `--this`) and by another git revision (a worktree of it), in fresh processes run
 in turn (other, this, other, this, ...), each with an empty cache folder.
 
 For each map: the compile time (the first call less the best run) and the
 best of `--repeats` runs of each process; the ratios this / other pair by
 pair, and their median. Both revisions' maps are compared to the bit.
 
-    python benchmarks/revisions.py --against HEAD~1 [--pairs 3] [--repeats 5]
-        [--maps pulse:fixed,record:fps]
+    python benchmarks/revisions.py --against HEAD~1 [--this REV] [--pairs 3]
+        [--repeats 5] [--maps pulse:fixed,record:fps]
 
 writes `results/revisions.{md,json}`.
 """
@@ -86,9 +86,30 @@ def _run(path, names, repeats, out):
     return json.loads(Path(out + ".json").read_text()), np.load(out + ".npz")
 
 
+def _short(revision: str) -> str:
+    return subprocess.run(
+        ["git", "rev-parse", "--short", revision],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+
+
+def _worktree(path: Path, revision: str) -> Path:
+    """A checkout of `revision` at `path` (a git worktree)."""
+    subprocess.run(
+        ["git", "worktree", "add", "--detach", "-q", str(path), revision],
+        cwd=ROOT,
+        check=True,
+    )
+    return path
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--against", default="HEAD~1", help="the other git revision")
+    p.add_argument("--this", help="a revision instead of the working tree")
     p.add_argument("--pairs", type=int, default=3)
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--maps", default=",".join(MAPS))
@@ -97,30 +118,25 @@ def main():
     if a.worker:
         return _worker(a.worker.split(","), a.repeats, rest[0])
     names = a.maps.split(",")
-    revision = subprocess.run(
-        ["git", "rev-parse", "--short", a.against],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.strip()
+    revision = _short(a.against)
+    this_name = "this" if a.this is None else _short(a.this)
     with tempfile.TemporaryDirectory() as tmp:
-        other = Path(tmp) / "other"
-        subprocess.run(
-            ["git", "worktree", "add", "--detach", "-q", str(other), revision],
-            cwd=ROOT,
-            check=True,
+        trees = {"other": _worktree(Path(tmp) / "other", revision)}
+        trees["this"] = (
+            ROOT if a.this is None else _worktree(Path(tmp) / "this", a.this)
         )
         try:
             runs = {"other": [], "this": []}
             for k in range(a.pairs):
-                for who, path in (("other", other), ("this", ROOT)):
+                for who in ("other", "this"):
                     out = str(Path(tmp) / f"{who}{k}")
-                    runs[who].append(_run(path, names, a.repeats, out))
+                    runs[who].append(_run(trees[who], names, a.repeats, out))
         finally:
-            subprocess.run(
-                ["git", "worktree", "remove", "--force", str(other)], cwd=ROOT
-            )
+            for who, tree in trees.items():
+                if tree != ROOT:
+                    subprocess.run(
+                        ["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT
+                    )
     rows = []
     for name in names:
         pairs = list(zip(runs["other"], runs["this"]))
@@ -139,7 +155,7 @@ def main():
             )
         rows.append(row)
     md = [
-        f"This checkout against {revision} ({a.pairs} pairs of fresh processes, "
+        f"{this_name} against {revision} ({a.pairs} pairs of fresh processes, "
         f"best of {a.repeats} runs each; medians):",
         "",
         *markdown_table(
@@ -147,16 +163,16 @@ def main():
             [
                 ("map", "{map}"),
                 (f"run (s), {revision}", "{other_run_s:.3f}"),
-                ("run (s), this", "{this_run_s:.3f}"),
+                (f"run (s), {this_name}", "{this_run_s:.3f}"),
                 ("run ratio", "{run_s_ratio:.3f}"),
                 (f"compile (s), {revision}", "{other_compile_s:.1f}"),
-                ("compile (s), this", "{this_compile_s:.1f}"),
+                (f"compile (s), {this_name}", "{this_compile_s:.1f}"),
                 ("compile ratio", "{compile_s_ratio:.3f}"),
                 ("identical", "{identical}"),
             ],
         ),
     ]
-    write_results("revisions", dict(against=revision, rows=rows), md)
+    write_results("revisions", dict(against=revision, this=this_name, rows=rows), md)
 
 
 if __name__ == "__main__":

@@ -49,6 +49,12 @@ def check_fits_in_memory(n: int) -> None:
         )
 
 
+def _initial_carry(block, base, motion):
+    """`initial_carry` under `motion` (one function: `jax.eval_shape` traces
+    it once per shape)."""
+    return initial_carry(block, base, prepare(motion))
+
+
 class Grid:
     """The cells of a map and their pilots.
 
@@ -107,7 +113,7 @@ class Grid:
         else:
             motion = first(motion)
         proto = jax.eval_shape(
-            lambda block, base, motion: initial_carry(block, base, prepare(motion)),
+            _initial_carry,
             Block(self.lam[0], self.r[0]),
             first(base),
             motion.unlabeled(),
