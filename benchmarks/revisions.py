@@ -1,8 +1,9 @@
 """Two revisions of jaxrock side by side: the paper's maps (2,440 cells) under
 the San Fernando PCD/SN pulse and the Pacoima Dam 164 record on the fixed
 base, the linear isolator and the friction pendulum, timed by the checked-out
-code (or the revision `--this`) and by another git revision (a worktree of it), in fresh processes run
-in turn (other, this, other, this, ...), each with an empty cache folder.
+code (or the revision `--this`) and by another git revision (a worktree of
+it), in fresh processes run in turn (other, this, other, this, ...), each
+with an empty cache folder.
 
 For each map: the compile time (the first call less the best run) and the
 best of `--repeats` runs of each process; the ratios this / other pair by
