@@ -109,7 +109,8 @@ from ._response_spectrum import (
     response_spectrum as response_spectrum,
 )
 from ._response_spectrum import rotd50 as rotd50
-from ._results import (  # noqa: E402
+from ._results import DECISION_WINDOW as DECISION_WINDOW  # noqa: E402
+from ._results import (
     EventKind as EventKind,
 )
 from ._results import (

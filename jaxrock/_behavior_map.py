@@ -114,22 +114,27 @@ class BehaviorMap(eqx.Module):
         return self.coordinates or Coordinates.unlabeled(self.outcome.ndim - 2)
 
     def counts(self) -> dict[str, int]:
-        """The number of cells per outcome, and of cells that did not converge.
+        """The number of cells per outcome, of undecided cells and of cells
+        that did not converge.
 
         Returns:
             A dict: "no_rocking", "rocking" and "overturned" count the cells of
-            each `Outcome`; "not_converged" the cells whose status is not
-            SUCCESS (counted under their outcome as well).
+            each `Outcome`; "undecided" the cells whose fate was still open at
+            the end of the window (`Status.UNDECIDED`), "not_converged" those
+            with any other status but SUCCESS (both counted under their
+            outcome as well).
 
         Examples:
             >>> import jaxrock as jr
             >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
             ...                      jr.near_fault_pulse("Northridge JFA/SN"))
             >>> bm.counts()
-            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'not_converged': 0}
-        """
+            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'undecided': 0, 'not_converged': 0}
+        """  # noqa: E501
         out = {o.name.lower(): int(np.sum(self.outcome == o)) for o in Outcome}
-        out["not_converged"] = int(np.sum(self.status != Status.SUCCESS))
+        undecided = self.status == Status.UNDECIDED
+        out["undecided"] = int(np.sum(undecided))
+        out["not_converged"] = int(np.sum((self.status != Status.SUCCESS) & ~undecided))
         return out
 
     def summary(self) -> str:
@@ -154,6 +159,8 @@ class BehaviorMap(eqx.Module):
             f"{c['no_rocking']} no rocking, {c['rocking']} rocking, "
             f"{c['overturned']} overturned"
         )
+        if c["undecided"]:
+            text += f", {c['undecided']} undecided (fate open at the window's end)"
         if c["not_converged"]:
             text += f", {c['not_converged']} NOT CONVERGED (see status)"
         return text + f" [{self.motion}; {self.base}]"

@@ -28,7 +28,7 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import is_count
 from ._record import Record
-from ._results import ATOL, RTOL, Outcome, Response, SolverOptions
+from ._results import ATOL, RTOL, Outcome, Response, SolverOptions, analysis_window
 from ._scene import fixed_base, prepare
 from ._simulate import run
 
@@ -90,8 +90,9 @@ def responses(
             one `Record`, shared by all blocks; or a suite of records
             (`Record.stack`, its motion axes flattened: n_motions records),
             whose samples every lane reads in place.
-        duration: the length of every analysis (s); default the latest end of
-            the motions plus 5 s.
+        duration: the length of every analysis (s); default None: each runs
+            until its block's fate is decided, for at most 60 s after the
+            latest end of the motions (`simulate`).
         opts: the numerical options (`SolverOptions`).
 
     Returns:
@@ -107,8 +108,9 @@ def responses(
         ((2, 2), [[0.0, 0.0], [0.001, 0.068]])
     """
     lane_blocks, lane_motions, motion_axes, shape = _pairs(blocks, motions)
-    if duration is None:
-        duration = jnp.max(motions.end_time) + 5.0
+    if duration is None:  # run until decided
+        duration, _ = analysis_window(motions, None)
+        opts = eqx.tree_at(lambda o: o.until_decided, opts, jnp.asarray(True))
     out = jax.vmap(
         lambda b, m: run(b, base, m, duration, opts), in_axes=(0, motion_axes)
     )(lane_blocks, lane_motions)

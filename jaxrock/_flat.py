@@ -208,7 +208,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     # A block at rest whose quiet stretch ended without an uplift (it rested
     # while |x_g''| was above its level) finds its next one in `_finish`.
     stale = jnp.asarray(False)
-    if kink is not None and level is not None:
+    if c.quiet_end is not None:
         stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
     # Events: the first condition (in order) that goes from > 0 to <= 0. At
     # t0 they are carried, where the carry has them (the end of the last step).
@@ -660,7 +660,7 @@ def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts)
     new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
         sub_c, sub, located, jump, block, base, motion, duration, opts
     )
-    if quiet_level(sub_c, block, base) is not None:
+    if sub_c.quiet_end is not None:
         # Where the next attempt may end (`step_end`), searched only where a
         # lane rests before or after its step (a rocking lane's `quiet_end` is
         # never read): `quiet_end` of the step's start may no longer hold.

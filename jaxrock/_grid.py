@@ -49,10 +49,11 @@ def check_fits_in_memory(n: int) -> None:
         )
 
 
-def _initial_carry(block, base, motion):
-    """`initial_carry` under `motion` (one function: `jax.eval_shape` traces
-    it once per shape)."""
-    return initial_carry(block, base, prepare(motion))
+def _initial_carry(block, base, motion, one_base):
+    """`initial_carry` in the scene of a chunk (`map_chunk`: the signal
+    prepared for `one_base`, the base of every cell or None). One function:
+    `jax.eval_shape` traces it once per shape."""
+    return initial_carry(block, base, prepare(motion, one_base))
 
 
 class Grid:
@@ -112,11 +113,13 @@ class Grid:
             motion = self.motion.select(0)
         else:
             motion = first(motion)
+        one_base = self.base if self.base_shape == () else None
         proto = jax.eval_shape(
             _initial_carry,
             Block(self.lam[0], self.r[0]),
             first(base),
             motion.unlabeled(),
+            one_base,
         )
         return jax.tree_util.tree_map(
             lambda s: np.zeros((self.pilots,) + s.shape, s.dtype), proto

@@ -26,7 +26,8 @@ class AbstractGroundMotion(AbstractChecked):
     An analysis starts at t = 0 with the block and base at rest and reads the
     motion through `acceleration(t)` (m/s^2, t in s) and `end_time` (s), when
     the excitation ends; what the motion does before t = 0 is ignored, and the
-    default `duration` of `simulate` is `end_time` + 5 s. The motions are
+    analyses run until the block's fate is decided, for at most 60 s after
+    `end_time` (`simulate`'s `duration`). The motions are
     `MPPulse`, `SinePulse` and `Record`. Their parameters may carry batch axes
     (an ensemble of motions, for `behavior_map` and `fragility`).
 

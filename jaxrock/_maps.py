@@ -34,6 +34,7 @@ from ._results import (
     REST_TOLERANCE,
     RTOL,
     SolverOptions,
+    analysis_window,
 )
 from ._scene import MotionLayout
 from ._store import ChunkStore
@@ -247,15 +248,21 @@ def behavior_map(
     check_executor(executor)
     lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
-    if duration is None:
-        duration = float(np.max(np.asarray(motion.end_time))) + 5.0
+    duration, until_decided = analysis_window(motion, duration)
     duration = one_real_number("duration", duration, "finite and > 0 (s)")
     positive("duration", duration)
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None
     )
     opts = SolverOptions.for_motion(
-        motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
+        motion,
+        rtol,
+        atol,
+        max_steps,
+        max_segments,
+        rest_tolerance,
+        solver,
+        until_decided,
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     check_fits_in_memory(int(np.prod(shape)))

@@ -44,7 +44,8 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
-from ._scene import carries_conditions, fixed_base
+from ._scene import carries_conditions, carries_quiet_end, fixed_base, rest_jumps
+from ._trig import sincos
 
 
 class Carry(eqx.Module):
@@ -75,21 +76,22 @@ class Carry(eqx.Module):
     theta_ref: Float[Array, ""]  # s theta at the segment's start (for the guard)
     # A redo (see `transition`) ends the segment's steps here (s); inf: no redo.
     t_limit: Float[Array, ""]
-    # On a fixed base: where |x_g''| may first reach the block's uplift level,
-    # found from an earlier time (the signal's `quiet_end`). Only the flat
-    # loop of maps reads it (while the signal's `quiet_holds`), and keeps it
-    # current in its event batches (`_flat._end_lanes`); `simulate` searches
-    # at every step.
-    quiet_end: Float[Array, ""]
-    # Where the scene has `rest_jumps`: the first sample at which a lane at
-    # rest searches for a jump (`_flat._rest_jump`).
-    search_from: Float[Array, ""]
     # On a base with a hysteretic state (costly conditions: a friction
     # pendulum's z), the event conditions' values at (t, y) (`start_conditions`),
     # else None. Only the flat loop of maps reads them, as the next step's
     # values at its start, and keeps them current; `simulate` leaves them as
     # `initial_carry` set them.
     start_conditions: tuple | None = None
+    # Where the scene `carries_quiet_end` (a block on a fixed base under a
+    # record with its table of peaks), else None: the sample where |x_g''|
+    # may first reach the block's uplift level, found from an earlier time
+    # (`RecordSignal.quiet_end`). Only the flat loop of maps reads it (while
+    # `quiet_holds`), and keeps it current in its event batches
+    # (`_flat._end_lanes`); `simulate` searches at every step.
+    quiet_end: Float[Array, ""] | None = None
+    # Where the scene has `rest_jumps`, else None: the first sample at which
+    # a lane at rest searches for a jump (`_flat._rest_jump`).
+    search_from: Float[Array, ""] | None = None
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -136,7 +138,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         theta_ref=zero,
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
         quiet_end=quiet_end(t, block, base, motion),
-        search_from=zero,
+        search_from=zero if rest_jumps(motion) else None,
     )
     return with_start_conditions(c, block, base, motion)
 
@@ -204,10 +206,10 @@ def quiet_level(c: Carry, block, base):
 
 def quiet_end(t, block, base, motion):
     """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
-    uplift level from t on (the signal's `quiet_end`) on a fixed base; NaN
-    on an isolated base (never read)."""
-    if not fixed_base(base):
-        return jnp.full_like(t, jnp.nan)
+    uplift level from t on (`RecordSignal.quiet_end`), where the scene
+    `carries_quiet_end`; else None."""
+    if not carries_quiet_end(base, motion):
+        return None
     return motion.quiet_end(t, block.uplift_acceleration)
 
 
@@ -419,8 +421,31 @@ def _event_kind(ev: _Events, rest, failed, still):
     )
 
 
+def can_overturn(phase, sign, y, block, base):
+    """Whether the block may still overturn (or uplift) once the ground is
+    still: not on a fixed base where it rests, or rocks below the separatrix
+    on the near side of its corner (energy conserved between impacts and lost
+    at each: x = sin((alpha - s theta) / 2) > 0 and x^2 > (theta' / 2p)^2,
+    as `_free.free_rocking_ready` reads it)."""
+    if not fixed_base(base):
+        return jnp.asarray(True)
+    x, _ = sincos(0.5 * (block.alpha - sign * y[0]))
+    below = (x > 0) & (x * x > (y[1] / (2.0 * block.p)) ** 2)
+    return (phase != Phase.TRANSLATION) & ~below
+
+
 def _advance(
-    c: Carry, end: _SegmentEnd, ev: _Events, y, rest, sol, block, base, motion, duration
+    c: Carry,
+    end: _SegmentEnd,
+    ev: _Events,
+    y,
+    rest,
+    sol,
+    block,
+    base,
+    motion,
+    duration,
+    opts,
 ) -> Carry:
     """The carry after the segment: the next phase, running maxima, counts,
     and whether the analysis is over."""
@@ -446,6 +471,10 @@ def _advance(
     max_theta = jnp.where(ev.overturn, 0.5 * jnp.pi, max_theta)
     steps = sol.stats["num_steps"]
     over = end.reached_end & ~end.event & (t >= duration)
+    # Run until decided (`SolverOptions.until_decided`), the window's end
+    # leaves the fate open unless the block can no longer overturn.
+    open_fate = can_overturn(phase, sign, y, block, base) & ~still & ~ev.overturn
+    undecided = over & opts.until_decided & open_fate
     return Carry(
         t=t,
         y=y,
@@ -457,7 +486,9 @@ def _advance(
         uplift_time=jnp.where(jnp.isnan(c.uplift_time) & started, t, c.uplift_time),
         rocked=c.rocked | started,
         overturned=c.overturned | ev.overturn,
-        status=end.status,
+        status=jnp.where(
+            undecided & (end.status == Status.SUCCESS), Status.UNDECIDED, end.status
+        ),
         segments=c.segments + jnp.where(cut, 0, 1),
         steps=c.steps + steps,
         segment_steps=jnp.where(cut, end.segment_steps, 0),
@@ -518,7 +549,7 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
     ev = _decode(c, mask, end.event, end.y[0])
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
-    new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration)
+    new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration, opts)
     return _merge_redo(c, new, active, redo, limit)
 
 

@@ -5,8 +5,10 @@ from enum import IntEnum
 
 import diffrax
 import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Bool, Float, Int
 
 from ._misc import (
     AbstractChecked,
@@ -50,9 +52,11 @@ class Status(IntEnum):
     then, and its analysis ends with INVALID_INPUT.
 
     Attributes:
-        SUCCESS: the analysis reached its end: the end of the window
-            (`duration`, s), an overturn, or a state from which nothing more
-            can happen (0).
+        SUCCESS: the analysis reached its end: an overturn, a state from which
+            nothing more can happen, a block that can no longer overturn
+            (on a fixed base once the ground is still, free rocking below
+            the separatrix), or the end of a window the user set
+            (`duration`, s) (0).
         MAX_STEPS: a segment hit the solver's step limit, `max_steps` (1).
         MAX_SEGMENTS: the analysis hit `max_segments` before its end (2).
         SOLVER_FAILED: the step-size controller or the event root finder
@@ -62,6 +66,10 @@ class Status(IntEnum):
             traced values, which the checks at construction cannot see; the
             float results (max_rotation, max_base_displacement, uplift_time)
             are NaN (4).
+        UNDECIDED: an analysis run until the block's fate is decided (the
+            default `duration`) reached `DECISION_WINDOW` s after the
+            excitation with the block still able to uplift, rock on or
+            overturn (5).
 
     Examples:
         >>> import jaxrock as jr
@@ -79,6 +87,8 @@ class Status(IntEnum):
     # traced values, which the checks at construction cannot see); every float
     # result is NaN.
     INVALID_INPUT = 4
+    # Run until decided, the block's fate still open at the window's end.
+    UNDECIDED = 5
 
 
 class EventKind(IntEnum):
@@ -130,6 +140,9 @@ class EventKind(IntEnum):
 RTOL, ATOL = 1e-8, 1e-10
 MAX_STEPS, MAX_SEGMENTS = 16384, 2000
 REST_TOLERANCE = 1e-6
+# Without a `duration`, an analysis runs until the block's fate is decided, for
+# at most this long after the excitation (s).
+DECISION_WINDOW = 60.0
 
 
 def _max_steps_for(motion, max_steps: int | None) -> int:
@@ -141,6 +154,18 @@ def _max_steps_for(motion, max_steps: int | None) -> int:
     if max_steps is not None:
         return max_steps
     return max(MAX_STEPS, 1 << (4 * sample_count(motion)).bit_length())
+
+
+def analysis_window(motion, duration):
+    """(duration, until_decided): a window the user set (s), or for None the
+    end of the excitation plus `DECISION_WINDOW`, run until the block's fate
+    is decided. A concrete end stays in NumPy (an operation on a concrete JAX
+    array compiles a program of its own)."""
+    if duration is not None:
+        return duration, False
+    end = motion.end_time
+    end = end if isinstance(end, jax.core.Tracer) else np.max(np.asarray(end))
+    return end + DECISION_WINDOW, True
 
 
 class SolverOptions(AbstractChecked):
@@ -199,6 +224,11 @@ class SolverOptions(AbstractChecked):
         default_factory=diffrax.Tsit5, static=True
     )
     step: Float[Array, ""] | None = None
+    # The window is the limit of an analysis run until the block's fate is
+    # decided (`DECISION_WINDOW`): one that reaches it undecided is UNDECIDED.
+    until_decided: Bool[Array, ""] = eqx.field(
+        default=False, converter=lambda x: jnp.asarray(x, dtype=bool)
+    )
 
     def __check_init__(self):
         for name in ("max_steps", "max_segments"):
@@ -218,7 +248,15 @@ class SolverOptions(AbstractChecked):
 
     @classmethod
     def for_motion(
-        cls, motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
+        cls,
+        motion,
+        rtol,
+        atol,
+        max_steps,
+        max_segments,
+        rest_tolerance,
+        solver,
+        until_decided=False,
     ) -> "SolverOptions":
         """The options of an analysis under `motion`: `max_steps` None picks
         the step limit for its length (`_max_steps_for`), `solver` None Tsit5."""
@@ -229,6 +267,7 @@ class SolverOptions(AbstractChecked):
             max_segments,
             rest_tolerance,
             solver or diffrax.Tsit5(),
+            until_decided=until_decided,
         )
 
 

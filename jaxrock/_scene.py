@@ -11,6 +11,9 @@ about the scene that choose a code path:
   there (`_model.quiet_level`); only the uplift conditions read the ground.
 - `closed_form_tail`: free rocking once the ground is still has a closed
   form (`_free.py`), and a map finishes it without steps.
+- `carries_quiet_end`: under a record, a block at rest on a fixed base
+  skips samples to its next possible uplift, found in the record's table of
+  peaks and carried from step to step.
 - `rest_jumps`: a block at rest on a linear isolator under a record skips
   samples on the base's tabulated response (`_flat._rest_jump`).
 - `carries_conditions`: a base with a hysteretic state, whose event
@@ -54,6 +57,18 @@ def closed_form_tail(base: AbstractIsolator) -> bool:
     """A map finishes a rocking block's free rocking once the ground is still
     in closed form (static): the base answers (`free_rocking_closed_form`)."""
     return base.free_rocking_closed_form
+
+
+def carries_quiet_end(base: AbstractIsolator, signal: AbstractSignal) -> bool:
+    """A block at rest on the base skips to just before the next sample where
+    |x_g''| may reach its uplift level, found from a table and carried
+    between steps (static): a fixed base under a record's signal with its
+    table of peaks (`Carry.quiet_end`)."""
+    return (
+        fixed_base(base)
+        and isinstance(signal, RecordSignal)
+        and signal.peaks is not None
+    )
 
 
 def rest_jumps(signal: AbstractSignal) -> bool:

@@ -77,23 +77,14 @@ class AbstractSignal(AbstractAcceleration):
         `limits_steps`. `quiet_below` (m/s^2; a lane's own level, 0 for a
         rocking lane): a block at rest on a fixed base uplifts only where
         |x_g''| reaches it, so a step may end anywhere before |x_g''| could
-        reach it and must end before it. `quiet_end`: `quiet_end(t0, level)`
-        of an earlier t0 <= t, read where `quiet_holds(t, quiet_end)` (None:
-        search)."""
+        reach it and must end before it. `quiet_end`: a record's
+        `quiet_end(t0, level)` of an earlier t0 <= t, read where
+        `quiet_holds(t, quiet_end)` (None: search)."""
 
     @abc.abstractmethod
     def step_end(self, t0, dt, kink) -> Float[Array, ""]:
         """The end of a step of at most dt (s) from t0 that stops at `kink`
         (`next_kink`; inf: none)."""
-
-    @abc.abstractmethod
-    def quiet_end(self, t, level) -> Float[Array, ""]:
-        """Where |x_g''| may first reach `level` (m/s^2) from t on, in the form
-        `next_kink` reads; it holds for later t while `quiet_holds`."""
-
-    @abc.abstractmethod
-    def quiet_holds(self, t, quiet_end) -> Bool[Array, ""]:
-        """Whether `quiet_end` (of an earlier time) still holds at t."""
 
     def step_accelerations(self, times):
         """x_g'' (m/s^2) at the times of one step of the flat loop of maps: its
@@ -163,14 +154,6 @@ class ClosedFormSignal(AbstractSignal):
         # (The kink only bounds where a block at rest could uplift, and moves
         # with t0.)
         return jnp.minimum(t0 + dt, kink)
-
-    def quiet_end(self, t, level):
-        del level  # (`next_kink` needs none)
-        return jnp.full_like(t, jnp.nan)
-
-    def quiet_holds(self, t, quiet_end):
-        del quiet_end
-        return jnp.ones_like(t, dtype=bool)
 
 
 class RecordSignal(AbstractSignal):

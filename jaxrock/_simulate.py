@@ -53,6 +53,7 @@ from ._results import (
     History,
     Response,
     SolverOptions,
+    analysis_window,
 )
 from ._scene import prepare
 from ._xla import compiler_accepts
@@ -482,8 +483,12 @@ def simulate(
         base: `FixedBase()`, `LinearIsolator(...)`, `FrictionPendulum(...)` or
             `IntegratedFrictionPendulum(...)`.
         motion: an `MPPulse`, a `SinePulse` or a `Record`.
-        duration: length of the analysis (s), one number > 0; default: the
-            end of the excitation plus 5 s.
+        duration: length of the analysis (s), one number > 0; default None:
+            run until the block's fate is decided (it overturns, it rests and
+            its base can no longer lift it, or on a fixed base once the
+            ground is still it rocks below the separatrix and can no longer
+            overturn), for at most `DECISION_WINDOW` (60 s) after the
+            excitation; a fate still open then is `Status.UNDECIDED`.
         rtol: the integrator's relative tolerance (-). Events are located to
             about 1e-12 s on the dense output whatever the tolerances.
         atol: the integrator's absolute tolerance, in the state's units (rad,
@@ -521,15 +526,18 @@ def simulate(
         (True, 'ROCKING')
     """
     _check_single(block, base, motion)
-    if duration is None:
-        end = motion.end_time
-        # A concrete end in NumPy: an operation on a concrete JAX array
-        # compiles a program of its own.
-        duration = (end if isinstance(end, jax.core.Tracer) else np.asarray(end)) + 5.0
+    duration, until_decided = analysis_window(motion, duration)
     duration = one_real_number("duration", duration, "finite and > 0 (s)")
     positive("duration", duration)
     opts = SolverOptions.for_motion(
-        motion, rtol, atol, max_steps, max_segments, rest_tolerance, solver
+        motion,
+        rtol,
+        atol,
+        max_steps,
+        max_segments,
+        rest_tolerance,
+        solver,
+        until_decided,
     )
     motion = motion.unlabeled()  # labels are static: they would recompile
     if not history:
