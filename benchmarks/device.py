@@ -153,7 +153,12 @@ def _row(name, motion, bm, compile_s, call_s, lanes):
         analyses_per_s=bm.outcome.size / bm.seconds,
         steps_per_analysis=float(np.mean(bm.steps)),
         lane_efficiency=bm.lane_efficiency,
-        not_success=int(np.sum(bm.status != 0)),
+        undecided=int(np.sum(bm.status == jr.Status.UNDECIDED)),
+        not_success=int(
+            np.sum(
+                (bm.status != jr.Status.SUCCESS) & (bm.status != jr.Status.UNDECIDED)
+            )
+        ),
         peak_device_mb=peak,
         peak_device="n/a" if peak is None else f"{peak:,.0f}",
         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -306,7 +311,8 @@ COLUMNS = [
     ("analyses/s", "{analyses_per_s:,.0f}"),
     ("steps/analysis", "{steps_per_analysis:.0f}"),
     ("lane eff.", "{lane_efficiency:.0%}"),
-    ("not SUCCESS", "{not_success}"),
+    ("undecided", "{undecided}"),
+    ("failed", "{not_success}"),
     ("peak device (MB)", "{peak_device}"),
     ("peak RSS (MB)", "{peak_rss_mb:.0f}"),
 ]

@@ -10,7 +10,7 @@ best of `--repeats` runs of each process; the ratios this / other pair by
 pair, and their median. Both revisions' maps are compared to the bit.
 
     python benchmarks/revisions.py --against HEAD~1 [--this REV] [--pairs 3]
-        [--repeats 5] [--maps pulse:fixed,record:fps]
+        [--repeats 5] [--maps pulse:fixed,record:fps] [--after 5]
 
 writes `results/revisions.{md,json}`.
 """
@@ -34,7 +34,7 @@ from _results import markdown_table, write_results  # noqa: E402
 MAPS = [f"{m}:{b}" for m in ("pulse", "record") for b in ("fixed", "linear", "fps")]
 
 
-def _worker(names, repeats, out):
+def _worker(names, repeats, after, out):
     """Time the maps `names` in this process (jaxrock from PYTHONPATH)."""
     import importlib.resources
 
@@ -58,9 +58,16 @@ def _worker(names, repeats, out):
     for name in names:
         motion, base = name.split(":")
 
+        duration = None if after is None else float(motions[motion].end_time) + after
+
         def run():
             return jr.behavior_map(
-                lam, size, bases[base], motions[motion], progress=False
+                lam,
+                size,
+                bases[base],
+                motions[motion],
+                duration=duration,
+                progress=False,
             )
 
         t = time.perf_counter()
@@ -73,14 +80,15 @@ def _worker(names, repeats, out):
     Path(out + ".json").write_text(json.dumps(rows))
 
 
-def _run(path, names, repeats, out):
+def _run(path, names, repeats, after, out):
     """A fresh worker process with jaxrock from `path`."""
     env = dict(os.environ, PYTHONPATH=str(path), JAX_PLATFORMS="cpu")
     with tempfile.TemporaryDirectory() as cache:
         env["JAXROCK_CACHE"] = cache
         subprocess.run(
             [sys.executable, __file__, "--worker", ",".join(names), out]
-            + ["--repeats", str(repeats)],
+            + ["--repeats", str(repeats)]
+            + ([] if after is None else ["--after", str(after)]),
             env=env,
             check=True,
         )
@@ -114,10 +122,16 @@ def main():
     p.add_argument("--pairs", type=int, default=3)
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--maps", default=",".join(MAPS))
+    p.add_argument(
+        "--after",
+        type=float,
+        help="a window that ends this long after the excitation (s); default: "
+        "each revision's own default",
+    )
     p.add_argument("--worker", help=argparse.SUPPRESS)
     a, rest = p.parse_known_args()
     if a.worker:
-        return _worker(a.worker.split(","), a.repeats, rest[0])
+        return _worker(a.worker.split(","), a.repeats, a.after, rest[0])
     names = a.maps.split(",")
     revision = _short(a.against)
     this_name = "this" if a.this is None else _short(a.this)
@@ -131,7 +145,7 @@ def main():
             for k in range(a.pairs):
                 for who in ("other", "this"):
                     out = str(Path(tmp) / f"{who}{k}")
-                    runs[who].append(_run(trees[who], names, a.repeats, out))
+                    runs[who].append(_run(trees[who], names, a.repeats, a.after, out))
         finally:
             for who, tree in trees.items():
                 if tree != ROOT:
@@ -157,7 +171,9 @@ def main():
         rows.append(row)
     md = [
         f"{this_name} against {revision} ({a.pairs} pairs of fresh processes, "
-        f"best of {a.repeats} runs each; medians):",
+        f"best of {a.repeats} runs each; medians"
+        + ("" if a.after is None else f"; windows end {a.after:g} s after the motion")
+        + "):",
         "",
         *markdown_table(
             rows,
@@ -173,7 +189,8 @@ def main():
             ],
         ),
     ]
-    write_results("revisions", dict(against=revision, this=this_name, rows=rows), md)
+    result = dict(against=revision, this=this_name, after=a.after, rows=rows)
+    write_results("revisions", result, md)
 
 
 if __name__ == "__main__":

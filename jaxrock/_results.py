@@ -156,6 +156,14 @@ def _max_steps_for(motion, max_steps: int | None) -> int:
     return max(MAX_STEPS, 1 << (4 * sample_count(motion)).bit_length())
 
 
+def _flag(x):
+    """A bool array leaf: NumPy's for a concrete value (a JAX array built
+    outside compiled code compiles a program of its own)."""
+    if isinstance(x, jax.core.Tracer):
+        return jnp.asarray(x, dtype=bool)
+    return np.asarray(x, dtype=bool)
+
+
 def analysis_window(motion, duration):
     """(duration, until_decided): a window the user set (s), or for None the
     end of the excitation plus `DECISION_WINDOW`, run until the block's fate
@@ -163,9 +171,10 @@ def analysis_window(motion, duration):
     array compiles a program of its own)."""
     if duration is not None:
         return duration, False
-    end = motion.end_time
-    end = end if isinstance(end, jax.core.Tracer) else np.max(np.asarray(end))
-    return end + DECISION_WINDOW, True
+    end = motion.end_time  # the latest of a batch
+    if isinstance(end, jax.core.Tracer):
+        return jnp.max(end) + DECISION_WINDOW, True
+    return np.max(np.asarray(end)) + DECISION_WINDOW, True
 
 
 class SolverOptions(AbstractChecked):
@@ -226,9 +235,7 @@ class SolverOptions(AbstractChecked):
     step: Float[Array, ""] | None = None
     # The window is the limit of an analysis run until the block's fate is
     # decided (`DECISION_WINDOW`): one that reaches it undecided is UNDECIDED.
-    until_decided: Bool[Array, ""] = eqx.field(
-        default=False, converter=lambda x: jnp.asarray(x, dtype=bool)
-    )
+    until_decided: Bool[Array, ""] = eqx.field(default=False, converter=_flag)
 
     def __check_init__(self):
         for name in ("max_steps", "max_segments"):

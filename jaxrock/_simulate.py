@@ -31,6 +31,7 @@ from . import _cache
 from ._block import Block
 from ._dynamics import Phase, check_restitution, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, BracketedNewton
+from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import one_real_number, positive
@@ -55,7 +56,7 @@ from ._results import (
     SolverOptions,
     analysis_window,
 )
-from ._scene import prepare
+from ._scene import closed_form_tail, prepare
 from ._xla import compiler_accepts
 
 
@@ -161,10 +162,23 @@ def _solve_segment(c: Carry, block, base, motion, duration, opts, dense=False):
 
 
 def run(block, base, motion, duration, opts: SolverOptions) -> Response:
-    """The whole analysis as one traceable function (for `jit`, `vmap`, `jacfwd`)."""
+    """The whole analysis as one traceable function (for `jit`, `vmap`, `jacfwd`).
+
+    Run until decided (`SolverOptions.until_decided`) on a base whose free
+    rocking has a closed form, a block rocking below the separatrix once the
+    ground is still is finished in closed form (`_free.py`), as maps finish
+    it: its impacts down to rest are exact there, where an integration's
+    tolerances, absolute and relative, lose the tail's tiny rotations."""
+
+    def tail(c):
+        """The analysis goes on in closed form from here."""
+        if not closed_form_tail(base):
+            return jnp.asarray(False)
+        ready = free_rocking_ready(c, block, motion.end_time)
+        return opts.until_decided & is_active(c, opts) & ready
 
     def cond(c):
-        return is_active(c, opts)
+        return is_active(c, opts) & ~tail(c)
 
     def body(c):
         sol = _solve_segment(c, block, base, motion, duration, opts)
@@ -173,6 +187,8 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
     valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
     motion = prepare(motion)
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
+    if closed_form_tail(base):
+        carry = free_rocking(carry, block, base, duration, opts, tail(carry))
     return response(carry, block, opts)
 
 

@@ -46,8 +46,8 @@ class OverturningSpectrum(eqx.Module):
         >>> s = jr.overturning_spectrum(jr.Block(10.0, 1.0), jr.FixedBase(),
         ...                             [2.0, 4.0], [1.5, 3.0, 6.0])
         >>> s.impacts
-        array([[1, 0, 0],
-               [7, 1, 0]])
+        array([[  1,   0,   0],
+               [431,   1,   0]])
     """
 
     frequency_ratio: np.ndarray
@@ -80,7 +80,7 @@ class OverturningSpectrum(eqx.Module):
             ...                             [2.0, 4.0], [1.5, 3.0, 6.0])
             >>> ds = s.to_xarray()
             >>> ds.impacts.sel(frequency_ratio=4.0).values
-            array([7, 1, 0])
+            array([431,   1,   0])
         """
         dims = ("frequency_ratio", "amplitude_ratio")
         coords = {

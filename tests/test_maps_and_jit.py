@@ -298,18 +298,28 @@ def test_flat_loop_retries_an_event_newton_did_not_locate():
     assert bm.impacts[0, 0] > 60
 
 
+AFTER_PULSE = float(PULSE.end_time) + 5.0
+
+
 @pytest.mark.parametrize(
     "duration, max_segments",
-    [(None, 2000), (float(PULSE.end_time) + 0.25, 2000), (None, 15)],
-    ids=["default", "window-ends-mid-rise", "segment-limit"],
+    [
+        (AFTER_PULSE, 2000),
+        (float(PULSE.end_time) + 0.25, 2000),
+        (AFTER_PULSE, 15),
+        (None, 2000),
+    ],
+    ids=["window-after-the-pulse", "window-ends-mid-rise", "segment-limit", "decided"],
 )
 def test_fixed_base_free_rocking_tail_equals_simulate(duration, max_segments):
     """On a fixed base a map finishes the rocking after the pulse in closed form
-    (`_free.py`); `simulate` integrates it. Every field they share agrees: with
-    a window that ends while blocks rise to their highest apex (theta at the
-    window's end, by bisection), and with a segment limit hit in the tail. The
-    grid holds blocks past their corner when the pulse ends ((2.7, 0.6 m):
-    integrated on, they overturn) and long Zeno tails of small impacts."""
+    (`_free.py`); `simulate` in a window integrates it. Every field they share
+    agrees: with a window that ends while blocks rise to their highest apex
+    (theta at the window's end, by bisection), and with a segment limit hit
+    in the tail. The grid holds blocks past their corner when the pulse ends
+    ((2.7, 0.6 m): integrated on, they overturn) and long Zeno tails of small
+    impacts. Run until decided, `simulate` finishes the tail in closed form
+    too, down to rest."""
     lam, size = [2.7, 4.0, 6.0], [0.6, 1.5]
     bm = jr.behavior_map(
         lam, size, jr.FixedBase(), PULSE, duration=duration, max_segments=max_segments
@@ -331,7 +341,7 @@ def test_fixed_base_free_rocking_tail_equals_simulate(duration, max_segments):
             bm.status == jr.Status.MAX_SEGMENTS
         )
         assert "NOT CONVERGED" in bm.summary()
-    elif duration is None:
+    elif duration is None or duration == AFTER_PULSE:
         assert bm.outcome[0, 0] == jr.Outcome.OVERTURNED
         assert bm.impacts.max() > 30
     else:  # blocks still rising at the window's end, and at their highest

@@ -68,7 +68,8 @@ def results():
         for case in CASES:
             name, lam, r, scale = case
             motion, (acc, t_end, max_step) = _pulse(name, scale)
-            ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
+            window = dict(rtol=1e-10, atol=1e-12, duration=t_end + 5.0)
+            ours = jr.simulate(jr.Block(lam, r), base, motion, **window)
             theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
             out[key, case] = (ours, theirs)
     return out
@@ -113,7 +114,8 @@ def _matches_reference(base, ref_base, case):
     outcome, impacts, max rotation and max |u|."""
     name, lam, r, scale = case
     motion, (acc, t_end, max_step) = _pulse(name, scale)
-    ours = jr.simulate(jr.Block(lam, r), base, motion, rtol=1e-10, atol=1e-12)
+    window = dict(rtol=1e-10, atol=1e-12, duration=t_end + 5.0)
+    ours = jr.simulate(jr.Block(lam, r), base, motion, **window)
     theirs = ref.simulate(lam, r, ref_base, acc, t_end + 5.0, max_step)
     assert int(ours.status) == jr.Status.SUCCESS
     assert int(ours.outcome) == theirs["outcome"]

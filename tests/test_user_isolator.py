@@ -104,12 +104,13 @@ def test_a_toy_spring_written_in_a_test_runs_through_simulate_maps_and_jacfwd():
     lam, size = np.array([2.5, 4.0, 6.0]), np.array([0.4, 1.5])
     spring = Spring(2.0, 0.5)
     linear = jr.LinearIsolator(2.0, 0.0, 0.5)  # the same physics, built in
-    bm = jr.behavior_map(lam, size, spring, PULSE, progress=False)
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.5)
+    bm = jr.behavior_map(lam, size, spring, pulse, progress=False)
     assert len(np.unique(bm.outcome)) >= 2  # the comparison means something
     for i, slenderness in enumerate(lam):
         for j, r in enumerate(size):
-            ours = jr.simulate(jr.Block(slenderness, r), spring, PULSE)
-            theirs = jr.simulate(jr.Block(slenderness, r), linear, PULSE)
+            ours = jr.simulate(jr.Block(slenderness, r), spring, pulse)
+            theirs = jr.simulate(jr.Block(slenderness, r), linear, pulse)
             assert int(bm.outcome[i, j]) == int(ours.outcome) == int(theirs.outcome)
             np.testing.assert_allclose(
                 [bm.max_rotation[i, j], ours.max_rotation],
