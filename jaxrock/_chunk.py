@@ -51,7 +51,10 @@ class ChunkTask(eqx.Module):
     None). `one_base` is the base of every cell without the cell axis, if
     they share one (else None: an ensemble of bases). `shared`: the carries
     the cells start from (their pilots'); `pilot`: a pass of pilots (see
-    `map_chunk`). Cells from `count` on are padding and never analysed.
+    `map_chunk`). `restitution`: the cells' `Block` keywords
+    (`restitution_factor` or `restitution`: a dict of one per-cell array),
+    or None for the momentum model's coefficient. Cells from `count` on are
+    padding and never analysed.
     """
 
     slenderness: Any
@@ -59,6 +62,7 @@ class ChunkTask(eqx.Module):
     base: Any
     motion: Any
     suite_index: Any
+    restitution: Any
     shared: Any
     one_base: Any
     duration: Any
@@ -105,6 +109,7 @@ def map_chunk(task: ChunkTask, loop: _layout.Loop):
         task.base,
         signal,
         task.suite_index,
+        task.restitution,
         task.shared,
         task.duration,
         task.opts,
@@ -157,6 +162,7 @@ class _Chunk(eqx.Module):
     base: AbstractIsolator
     motion: AbstractSignal
     suite_index: jax.Array | None
+    restitution: dict | None
     shared: Carry
     duration: jax.Array
     opts: SolverOptions
@@ -187,10 +193,15 @@ class _Chunk(eqx.Module):
         elif self.layout is MotionLayout.PER_CELL:
             lane_motion = take(self.motion)
         return (
-            Block(self.slenderness[cell], self.size[cell]),
+            Block(self.slenderness[cell], self.size[cell], **take(self.own)),
             take(self.base),
             lane_motion,
         )
+
+    @property
+    def own(self) -> dict:
+        """The cells' own coefficient of restitution, as `Block` keywords."""
+        return {} if self.restitution is None else self.restitution
 
     def inputs(self, per_lane):
         """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
@@ -288,7 +299,7 @@ class _Chunk(eqx.Module):
         """The cells' responses and carries. On a fixed base, the lanes that
         `closed_form` ended (not done, within their segments, rocking; not
         pilots, whose responses are not used) finish in closed form."""
-        blocks = Block(self.slenderness, self.size)
+        blocks = Block(self.slenderness, self.size, **self.own)
         final = carries
         if closed_form_tail(self.base):
             ready = is_active(carries, self.opts)

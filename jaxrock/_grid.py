@@ -59,54 +59,69 @@ def _initial_carry(block, base, motion, one_base):
 class Grid:
     """The cells of a map and their pilots.
 
-    Cells run over (base batch, motion batch, slenderness, size) in C order;
-    one pilot per (base, motion, slenderness) runs the shared translation phase
-    (see `_chunk.map_chunk`). `inputs` gives the per-cell arrays of chosen cells."""
+    Cells run over (base batch, motion batch, restitution, slenderness, size)
+    in C order; one pilot per (base, motion, slenderness) runs the shared
+    translation phase (see `_chunk.map_chunk`), which the coefficient of
+    restitution does not enter. `restitution` is None (the momentum model's
+    e), or ("restitution_factor" or "restitution", a scalar or 1-D array of
+    values: the blocks' own, an axis if 1-D). `inputs` gives the per-cell
+    arrays of chosen cells."""
 
-    def __init__(self, lam, r, base, motion):
+    def __init__(self, lam, r, base, motion, restitution=None):
         self.lam, self.r, self.base, self.motion = lam, r, base, motion
+        self.restitution = restitution
         self.motion_shape = motion.batch_shape
         self.motion_names = motion.names() if self.motion_shape else None
         self.layout = MotionLayout.of(motion)
         self.base_shape = broadcast_batch_shape(base)
-        self.shape = self.base_shape + self.motion_shape + (lam.size, r.size)
+        values = () if restitution is None else np.shape(restitution[1])
+        self.restitution_shape = values
+        self.shape = self.base_shape + self.motion_shape + values + (lam.size, r.size)
         self.n = int(np.prod(self.shape))
         n_base, n_motion = (
             int(np.prod(self.base_shape)),
             int(np.prod(self.motion_shape)),
         )
-        ib, im, il, ir = np.unravel_index(
-            np.arange(self.n), (n_base, n_motion, lam.size, r.size)
+        n_e = int(np.prod(values))
+        ib, im, ie, il, ir = np.unravel_index(
+            np.arange(self.n), (n_base, n_motion, n_e, lam.size, r.size)
         )
         self.pilots = n_base * n_motion * lam.size
         self.pilot_of_cell = (ib * n_motion + im) * lam.size + il
         pb, pm, pl = np.unravel_index(
             np.arange(self.pilots), (n_base, n_motion, lam.size)
         )
-        self.pilot_inputs = self.inputs(pb, pm, pl, np.zeros_like(pl))
-        self.cell_inputs = self.inputs(ib, im, il, ir)
+        self.pilot_inputs = self.inputs(pb, pm, None, pl, np.zeros_like(pl))
+        self.cell_inputs = self.inputs(ib, im, ie, il, ir)
 
-    def inputs(self, ib, im, il, ir):
-        """(slenderness, size, base, motion) of the cells (ib, im, il, ir) (1-D
-        index arrays); the motion is None for one motion of every cell, the
-        index into the suite for a suite of records."""
+    def inputs(self, ib, im, ie, il, ir):
+        """(slenderness, size, base, motion, restitution) of the cells (ib,
+        im, ie, il, ir) (1-D index arrays); the motion is None for one motion
+        of every cell, the index into the suite for a suite of records; the
+        restitution (`Block`'s `restitution_factor` or `restitution`) None
+        for the momentum model's, and for pilots (`ie` None)."""
         if self.layout is MotionLayout.ONE_RECORD:
             motion = None
         elif self.layout is MotionLayout.SUITE:
             motion = im
         else:
             motion = _cells_of(self.motion, self.motion_shape, im)
+        restitution = None
+        if self.restitution is not None and ie is not None:
+            name, values = self.restitution
+            restitution = {name: np.reshape(values, -1)[ie]}
         return (
             self.lam[il],
             self.r[ir],
             _cells_of(self.base, self.base_shape, ib),
             motion,
+            restitution,
         )
 
     def blank_carries(self):
         """Zero carries of every pilot (the `shared` input of the pilot pass)."""
         first = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)  # noqa: E731
-        _, _, base, motion = self.pilot_inputs
+        _, _, base, motion, _ = self.pilot_inputs
         if self.layout is MotionLayout.ONE_RECORD:
             motion = self.motion
         elif self.layout is MotionLayout.SUITE:
@@ -126,7 +141,16 @@ class Grid:
         )
 
     def store_key(self, duration, chunk, opts) -> str:
-        """What identifies the map's chunks in a store."""
+        """What identifies the map's chunks in a store (the keys of a map
+        with neither `until_decided` nor its own restitution are those of the
+        maps before either existed: their stores resume)."""
+        extra = {}
+        if bool(opts.until_decided):
+            extra["until_decided"] = True
+        if self.restitution is not None:
+            name, values = self.restitution
+            extra[name] = np.asarray(values, dtype=float).tolist()
+        tolerances = (opts.rtol, opts.atol, opts.rest_tolerance, opts.step)
         return json.dumps(
             dict(
                 slenderness=self.lam.tolist(),
@@ -139,9 +163,10 @@ class Grid:
                 motion_leaves=_leaf_digest(self.motion),
                 duration=float(duration),
                 chunk=chunk,
-                options=_leaf_digest(opts),
+                options=_leaf_digest(tolerances),
                 solver=repr(opts.solver),
                 max_segments=opts.max_segments,
                 layout="cells dealt by start",  # chunks list their cells
             )
+            | extra
         )

@@ -162,8 +162,10 @@ def _parameters(module, shape, dims) -> dict[str, tuple]:
     return out
 
 
-def coordinates(base, motion=None) -> Coordinates:
-    """The labels of a result's batch axes: base batch, then motion batch."""
+def coordinates(base, motion=None, restitution=None) -> Coordinates:
+    """The labels of a result's batch axes: base batch, then motion batch,
+    then the blocks' own coefficients of restitution (`restitution`: None, or
+    the `Block` keyword and its values, an axis if 1-D)."""
     shape = broadcast_batch_shape(base)
     dims = _axis_names("base", len(shape))
     parts = [_parameters(base, shape, dims)]
@@ -185,6 +187,10 @@ def coordinates(base, motion=None) -> Coordinates:
         for name in parts[0].keys() & found.keys():
             parts[0]["base_" + name] = parts[0].pop(name)
             found["motion_" + name] = found.pop(name)
+    if restitution is not None and np.ndim(restitution[1]) == 1:
+        name, values = restitution
+        dims += (name,)
+        parts.append({name: ((name,), np.asarray(values), {"units": "1"})})
     return Coordinates(dims, {k: v for part in parts for k, v in part.items()})
 
 

@@ -19,6 +19,7 @@ from . import _layout
 from ._behavior_map import BehaviorMap, check_chunk, check_counts
 from ._block import Block
 from ._chunk import ChunkTask
+from ._dynamics import check_restitution
 from ._executor import check_executor, run_tasks
 from ._grid import Grid, check_fits_in_memory
 from ._ground import AbstractGroundMotion
@@ -115,7 +116,7 @@ class _ChunkRunner:
         def part(tree):
             return jax.tree_util.tree_map(lambda x: np.asarray(x)[take], tree)
 
-        lam_k, r_k, base_k, motion_k = inputs
+        lam_k, r_k, base_k, motion_k, restitution_k = inputs
         layout = self.grid.layout
         per_cell = layout is MotionLayout.PER_CELL
         return ChunkTask(
@@ -124,6 +125,7 @@ class _ChunkRunner:
             base=part(base_k),
             motion=part(motion_k) if per_cell else self.motion,
             suite_index=part(motion_k) if layout is MotionLayout.SUITE else None,
+            restitution=part(restitution_k),
             shared=part(shared),
             one_base=self.one_base,
             duration=self.duration,
@@ -207,6 +209,8 @@ def behavior_map(
     solver=None,
     store: str | os.PathLike | None = None,
     executor: Executor | None = None,
+    restitution_factor=None,
+    restitution=None,
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
@@ -232,6 +236,12 @@ def behavior_map(
     Chunks run one thread per CPU core, or per GPU.
     `progress` shows a tqdm bar (default: when there is more than one chunk).
     New grids, pulses or isolator parameters reuse the compile.
+
+    `restitution_factor` (f > 0, the coefficient applied at a re-uplift
+    e = f e_0) or `restitution` (e itself, in [0, 1]), as `Block` takes
+    them: one value for every block, or a 1-D array of values that adds an
+    axis after the motions' (`coordinates` name it); default the momentum
+    model's e_0. f e_0 <= 1 is checked for every slenderness of the grid.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
     only the missing chunks, dealt the cells as the first run dealt them; a
@@ -267,8 +277,9 @@ def behavior_map(
         until_decided,
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
-    check_fits_in_memory(int(np.prod(shape)))
-    grid = Grid(lam, r, base, motion)
+    check_fits_in_memory(int(np.prod(shape)) * max(np.size(restitution_factor), 1))
+    own = _restitution(restitution_factor, restitution, lam, base)
+    grid = Grid(lam, r, base, motion, own)
     chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size)
     if progress is None:
         progress = chunks > 1
@@ -294,6 +305,30 @@ def behavior_map(
     seconds = time.perf_counter() - t
     results = [results[k] for k in range(chunks)]
     return _assemble(grid, results, seconds, useful, executed)
+
+
+def _restitution(factor, coefficient, lam, base):
+    """The blocks' own coefficient of restitution for `Grid`: None, or (the
+    `Block` keyword, its values as a float array of 0 or 1 dimensions),
+    checked: in range (`Block`), and f e_0 <= 1 for every slenderness of the
+    grid on `base` (one without batch axes; an ensemble's cells check it in
+    compiled code: `Status.INVALID_INPUT`)."""
+    if factor is None and coefficient is None:
+        return None
+    name = "restitution_factor" if coefficient is None else "restitution"
+    values = np.asarray(factor if coefficient is None else coefficient)
+    if values.ndim > 1 or values.size == 0:
+        raise ValueError(
+            f"`{name}` must be one number or a 1-D array of numbers, got shape "
+            f"{values.shape}"
+        )
+    # The ranges, and that only one of the two is given (`Block`).
+    Block(1.0, 1.0, restitution_factor=factor, restitution=coefficient)
+    if coefficient is None and broadcast_batch_shape(base) == ():
+        check_restitution(
+            Block(lam[:, None], 1.0, restitution_factor=values.reshape(1, -1)), base
+        )
+    return name, values.astype(float)
 
 
 def _stored(store: ChunkStore, grid: Grid, chunks: int):
@@ -378,5 +413,5 @@ def _assemble(grid: Grid, results, seconds, useful, executed) -> BehaviorMap:
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
         motion_names=grid.motion_names,
-        coordinates=coordinates(grid.base, grid.motion),
+        coordinates=coordinates(grid.base, grid.motion, grid.restitution),
     )

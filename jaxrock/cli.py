@@ -398,6 +398,7 @@ def _add_map(sub) -> None:
         action="store_true",
         help="only the chosen base, not the fixed base beside it",
     )
+    _add_restitution_option(m)
     m.add_argument(
         "--chunk-size",
         type=_positive_int,
@@ -501,14 +502,17 @@ def _add_simulate(sub) -> None:
     _add_base_options(s, "response.png", "")
     _add_motion_options(s)
     _add_block_options(s)
-    s.add_argument(
+    _add_restitution_option(s)
+
+
+def _add_restitution_option(parser) -> None:
+    parser.add_argument(
         "--restitution-factor",
         type=float,
-        default=1.0,
         metavar="F",
         help="f > 0: the coefficient of restitution at a re-uplift is f e0, e0 "
         "the momentum model's (from the block's slenderness and the base's mass "
-        "ratio); f e0 <= 1",
+        "ratio); f e0 <= 1; default 1",
     )
 
 
@@ -1066,6 +1070,7 @@ def _run_map(a) -> int:
             chunk_size="auto" if a.chunk_size is None else a.chunk_size,
             store=None if a.store is None else os.path.join(a.store, type(b).__name__),
             executor=executor,
+            restitution_factor=a.restitution_factor,
         )
 
     # The maps run at once, in threads: one traces its loop while another

@@ -170,6 +170,7 @@ def test_shared_translation_changes_no_bit(monkeypatch):
             bases,
             motions,
             None,
+            None,
             initial,
             one,
             duration,

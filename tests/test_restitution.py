@@ -58,8 +58,9 @@ def _reference(key, name, lam, r, scale, f):
 @pytest.mark.parametrize("case", CASES, ids=str)
 def test_matches_reference(case):
     key, name, lam, r, scale, f = case
-    motion, _ = _pulse(name, scale)
-    ours = jr.simulate(_block(lam, r, f), BASES[key][0], motion, **TOL)
+    motion, (_, t_end, _) = _pulse(name, scale)
+    window = TOL | dict(duration=t_end + 5.0)  # the reference's
+    ours = jr.simulate(_block(lam, r, f), BASES[key][0], motion, **window)
     theirs = _reference(*case)
     assert int(ours.status) == jr.Status.SUCCESS
     assert int(ours.outcome) == theirs["outcome"]
@@ -220,11 +221,49 @@ def test_jacfwd_in_factor_matches_central_differences(key, field):
 
 
 @pytest.mark.parametrize("value", ["0", "-0.5", "nan", "1.2"])
-def test_cli_refuses_a_bad_factor_in_one_line(value, capsys, tmp_path):
+@pytest.mark.parametrize("command", ["simulate", "map"])
+def test_cli_refuses_a_bad_factor_in_one_line(command, value, capsys, tmp_path):
     from jaxrock import cli
 
-    argv = ["simulate", "--base", "fixed", "--slenderness", "6", "--size", "2"]
+    if command == "simulate":
+        argv = ["simulate", "--base", "fixed", "--slenderness", "6", "--size", "2"]
+    else:
+        argv = ["map", "--base", "fixed", "--slenderness", "2:6:3", "--size", "1:2:2"]
     argv += ["--restitution-factor", value, "--out", str(tmp_path / "r.png")]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "restitution_factor" in err
+
+
+def test_a_map_takes_a_batch_of_factors_as_an_axis():
+    """`behavior_map(..., restitution_factor=[...])`: an axis after the
+    motions', each member the map of blocks with that factor, cell by cell
+    the analysis of `simulate`; f = 1 is the default map to the bit; a
+    coefficient given directly is one value for every block; a factor that
+    makes f e0 > 1 for a slenderness of the grid is refused before any
+    compile."""
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    lam, size, base = [3.0, 5.0, 7.0], [0.5, 1.5], jr.FixedBase()
+    factors = np.array([0.8, 1.0])
+    bm = jr.behavior_map(lam, size, base, pulse, restitution_factor=factors)
+    assert bm.outcome.shape == (2, 3, 2)
+    assert bm.coordinates.dims == ("restitution_factor",)
+    plain = jr.behavior_map(lam, size, base, pulse)
+    for k in ("outcome", "max_rotation", "impacts", "segments", "steps"):
+        np.testing.assert_array_equal(getattr(bm, k)[1], getattr(plain, k), k)
+    assert np.any(bm.impacts[0] != bm.impacts[1])  # the factor changes the map
+    for i, j in np.ndindex(3, 2):
+        one = jr.simulate(
+            jr.Block(lam[i], size[j], restitution_factor=0.8), base, pulse
+        )
+        assert bm.outcome[0, i, j] == int(one.outcome)
+        assert bm.impacts[0, i, j] == int(one.impacts)
+        assert bm.max_rotation[0, i, j] == pytest.approx(float(one.max_rotation))
+    assert "restitution_factor = 0.8" in bm.select(0).motion
+    given = jr.behavior_map(lam, size, base, pulse, restitution=0.7)
+    one = jr.simulate(jr.Block(lam[2], size[1], restitution=0.7), base, pulse)
+    assert given.impacts[2, 1] == int(one.impacts)
+    with pytest.raises(ValueError, match="restitution_factor"):
+        jr.behavior_map(lam, size, base, pulse, restitution_factor=[1.0, 1.3])
+    with pytest.raises(ValueError, match="restitution_factor"):
+        jr.behavior_map(lam, size, base, pulse, restitution_factor=[[1.0]])
