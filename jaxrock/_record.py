@@ -224,39 +224,9 @@ class Record(AbstractGroundMotion):
             >>> round(float(jr.intensity_measure(scaled, "sa:1.0")), 12)
             4.9
         """
-        given = [
-            k for k, v in (("pga", pga), ("pgv", pgv), ("sa", sa)) if v is not None
-        ]
-        if len(given) != 1:
-            raise ValueError(
-                "give exactly one of `pga` (m/s^2), `pgv` (m/s) and "
-                "`sa` = (period in s, Sa in m/s^2)"
-            )
-        name = given[0]
-        if name == "sa":
-            if not (isinstance(sa, (tuple, list)) and len(sa) == 2):
-                raise ValueError(f"`sa` must be (period in s, Sa in m/s^2), got {sa!r}")
-            period = np.asarray(sa[0], dtype=float)
-            if period.ndim or not (np.isfinite(period) and period > 0):
-                raise ValueError(
-                    "`sa`'s period must be one number, finite and > 0 (s), got "
-                    f"{sa[0]!r}"
-                )
-            target = sa[1]
-        else:
-            target = pga if name == "pga" else pgv
-        target = np.asarray(target, dtype=float)
-        if not np.all(np.isfinite(target) & (target > 0)):
-            raise ValueError(f"`{name}` must be finite and > 0, got {target.tolist()}")
-        if name == "sa":
-            from ._response_spectrum import response_spectrum
+        from ._scaling import factor_to
 
-            now = response_spectrum(self, float(period)).pseudo_acceleration[..., 0]
-        else:
-            now = self.pga if name == "pga" else self.pgv
-        if np.any(now <= 0):
-            raise ValueError(f"a record with zero {name.upper()} cannot be scaled")
-        factor = np.broadcast_to(target / now, now.shape)
+        factor = factor_to(self, pga=pga, pgv=pgv, sa=sa)
         return self._rebuilt(jnp.asarray(factor), **self.labels())
 
     def scaled_to_spectrum(
@@ -284,26 +254,9 @@ class Record(AbstractGroundMotion):
             >>> round(float(rec.scaled_to_spectrum(periods, target).factor), 12)
             3.0
         """
-        from ._response_spectrum import check_periods, response_spectrum
+        from ._scaling import factor_to_spectrum
 
-        periods = check_periods(periods)
-        target = np.asarray(target, dtype=float)
-        if target.shape != periods.shape or not np.all(
-            np.isfinite(target) & (target > 0)
-        ):
-            raise ValueError(
-                f"`target` must hold one Sa (m/s^2), finite and > 0, per period "
-                f"({periods.size}), got shape {target.shape}"
-            )
-        sa = np.asarray(response_spectrum(self, periods, damping).pseudo_acceleration)
-        if np.any(sa <= 0):
-            raise ValueError("a record with zero Sa in `periods` cannot be scaled")
-        if each:
-            factor = np.exp(np.mean(np.log(target / sa), axis=-1))
-        else:
-            mean = sa.reshape(-1, periods.size).mean(axis=0)
-            one = np.exp(np.mean(np.log(target / mean)))
-            factor = np.full(sa.shape[:-1], one)
+        factor = factor_to_spectrum(self, periods, target, damping, each)
         return self._rebuilt(jnp.asarray(factor), **self.labels())
 
     def labels(self, flat: bool = False) -> dict:
