@@ -15,6 +15,7 @@ from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
 from ._misc import grid_axis, positive, unbatched
 from ._model import check_base_and_motion
+from ._record import Record
 from ._results import Outcome, Status
 
 
@@ -313,6 +314,8 @@ class Fragility(eqx.Module):
         motion: a description of the motions (scaled).
         seconds: the wall time of the analyses (s).
         scales: the amplitude factors (-); None for motions as given.
+        levels: the intensity levels of a multiple-stripe analysis (in the
+            units of `im`); None otherwise.
         coordinates: the motions' batch axes and the parameters of the base
             and the motions (before scaling) along them (`Coordinates`).
         motion_index: the motion of the ensemble (before scaling) of each row.
@@ -364,6 +367,7 @@ class Fragility(eqx.Module):
     seconds: float
     scales: np.ndarray | None
     coordinates: Coordinates
+    levels: np.ndarray | None = None
     # The motion (before scaling) of each row, and the records' names.
     motion_index: np.ndarray | None = None
     motion_names: tuple | None = None
@@ -391,6 +395,23 @@ class Fragility(eqx.Module):
         if beta == 0:
             return np.where(im > median, 1.0, np.where(im < median, 0.0, 0.5))
         return np.asarray(norm.cdf(np.log(im / median) / beta))
+
+    def stripes(self, which: str = "overturning"):
+        """A multiple-stripe analysis's counts per level: (levels, k, n), the
+        analyses of each level that reached `which` ("rocking",
+        "overturning" or a damage state) and those that count (status
+        SUCCESS): the binomial data of the fit."""
+        if self.levels is None:
+            raise ValueError("`stripes` needs a multiple-stripe analysis (`levels`)")
+        if which == "rocking":
+            reached = self.rocked
+        elif which == "overturning":
+            reached = self.overturned
+        else:
+            reached = self.exceeded[:, self._state_index(which)]
+        ok = (self.status == Status.SUCCESS).reshape(self.levels.size, -1)
+        k = np.sum(reached.reshape(self.levels.size, -1) & ok, axis=1)
+        return self.levels, k, np.sum(ok, axis=1)
 
     def _state_index(self, which) -> int:
         """The column of the damage state named `which` (its name as
@@ -447,10 +468,14 @@ class Fragility(eqx.Module):
         if self.scales is not None:
             dims = ("scale",) + dims
             coords["scale"] = (("scale",), self.scales, {"units": "1"})
+        if self.levels is not None:
+            dims = ("level",) + dims
+            coords["level"] = (("level",), self.levels, measure_attrs(self.measure))
         for k in ("slenderness", "size"):
             coords[k] = ((), getattr(self, k), ATTRS[k])
         shape = self.coordinates.sizes()
-        shape = (-1,) + shape if self.scales is not None else shape
+        leading = self.scales is not None or self.levels is not None
+        shape = (-1,) + shape if leading else shape
         im = measure_attrs(self.measure)
         fit = {}
         for which in ("rocking", "overturning"):
@@ -512,6 +537,7 @@ def fragility(
     motions: AbstractGroundMotion,
     *,
     scales=None,
+    levels=None,
     measure: str = "pga",
     damage_states=None,
     **map_options,
@@ -520,7 +546,12 @@ def fragility(
 
     The standard incremental analysis of rocking objects: every motion of a
     suite of records (`Record.stack`) at every factor of `scales`, or any
-    batched motion (a batched `MPPulse`, a suite) as it is. The analyses run
+    batched motion (a batched `MPPulse`, a suite) as it is. Or a
+    multiple-stripe analysis: every record scaled so that its own `measure`
+    equals each of `levels` (a stripe of analyses per level, the records'
+    measures exactly the level), whose analyses at one level enter the
+    likelihood as one binomial term (Baker 2015; `Fragility.stripes` counts
+    them). The analyses run
     as one behavior map with motion axes. The intensity measure of each
     analysis is computed from its own scaled motion by `intensity_measure`
     (the block's measures with this block): "pga" (m/s^2), "pgv" (m/s),
@@ -544,6 +575,10 @@ def fragility(
             pulse.
         scales: amplitude factors (> 0) applied to every motion; None: the
             motions as given.
+        levels: instead of `scales`, intensity levels (> 0, in the units of
+            `measure`) to scale every record of `motions` (a `Record` or a
+            suite) to: a measure that grows with a record's amplitude
+            (not "d5_95" or "frequency_ratio"; "arias" grows as its square).
         measure: a name of `intensity_measure`; default "pga".
         damage_states: names of damage states (above), e.g.
             ["uplift", "rotation:0.5", "overturning", "displacement:0.2"];
@@ -575,7 +610,12 @@ def fragility(
     states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
-    motions, scales = _ensemble(motions, scales)
+    if levels is not None:
+        if scales is not None:
+            raise ValueError("give `scales` or `levels`, not both")
+        motions, levels = _stripes(motions, levels, measure, slenderness, size)
+    else:
+        motions, scales = _ensemble(motions, scales)
     im = _moving_measure(motions, measure, slenderness, size)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     return Fragility(
@@ -587,11 +627,42 @@ def fragility(
         motion=bm.motion,
         seconds=bm.seconds,
         scales=scales,
+        levels=levels,
         coordinates=labels,
         motion_index=np.arange(bm.outcome.size) % members,
         motion_names=names,
         damage_states=states,
     )
+
+
+# How each measure grows with a record's amplitude factor f: as f^power (None:
+# not at all).
+_POWERS = {"arias": 2.0, "d5_95": None, "frequency_ratio": None}
+
+
+def _stripes(motions, levels, measure, slenderness, size):
+    """The records of `motions` scaled to each of `levels` of `measure` (the
+    factors' axis first), and the levels."""
+    levels = grid_axis("levels", levels)
+    positive("levels", levels)
+    if not isinstance(motions, Record):
+        raise ValueError(
+            "a multiple-stripe analysis (`levels`) scales records: `motions` must "
+            f"be a Record or a suite of records, got {type(motions).__name__}"
+        )
+    name, _ = parse_measure(measure)
+    power = _POWERS.get(name, 1.0)
+    if power is None:
+        raise ValueError(
+            f"`measure` {measure!r} does not grow with a record's amplitude: no "
+            "scaling reaches a level of it (use another measure with `levels`)"
+        )
+    own = _moving_measure(motions, measure, slenderness, size).reshape(
+        motions.batch_shape
+    )
+    factors = (levels.reshape((-1,) + (1,) * own.ndim) / own) ** (1.0 / power)
+    labels = {k: v * levels.size for k, v in motions.labels(flat=True).items()}
+    return motions._rebuilt(jnp.asarray(factors), **labels), levels
 
 
 def _ensemble(motions, scales):

@@ -427,9 +427,11 @@ def _add_fragility(sub) -> None:
         "fragility curves over a scaled pulse or suite of records",
         """\
         Fragility curves of one block: the pulse, record or suite of records
-        scaled by every factor of --scales (an incremental analysis), and
-        lognormal fits (maximum likelihood) of the probability of rocking and
-        of overturning against the intensity measure of each scaled motion.""",
+        scaled by every factor of --scales (an incremental analysis), or each
+        record scaled to every level of --levels of the measure (a
+        multiple-stripe analysis), and lognormal fits (maximum likelihood) of
+        the probability of rocking and of overturning against the intensity
+        measure of each scaled motion.""",
     )
     _add_base_options(f, "fragility.png", "")
     _add_motion_options(f)
@@ -437,8 +439,13 @@ def _add_fragility(sub) -> None:
     f.add_argument(
         "--scales",
         type=_range,
-        default="0.1:2.0:40",
-        help="amplitude factors of the motion, START:STOP:N",
+        help="amplitude factors of the motion, START:STOP:N; default 0.1:2.0:40",
+    )
+    f.add_argument(
+        "--levels",
+        type=_range,
+        help="instead of --scales: levels of --measure to scale each record "
+        "to, START:STOP:N (a multiple-stripe analysis of a record or a suite)",
     )
     f.add_argument(
         "--measure",
@@ -1021,13 +1028,19 @@ def _run_fragility(a) -> int:
     from jaxrock._fragility import check_damage_states
 
     check_damage_states(a.damage_states, a.slenderness, base)
+    if a.scales is not None and a.levels is not None:
+        raise ValueError("give --scales or --levels, not both")
+    scales = a.scales
+    if a.levels is None and scales is None:
+        scales = _range("0.1:2.0:40")
 
     frag = jr.fragility(
         a.slenderness,
         a.size,
         base,
         motion,
-        scales=a.scales,
+        scales=scales,
+        levels=a.levels,
         measure=a.measure,
         damage_states=a.damage_states,
         progress=False,

@@ -267,3 +267,33 @@ def test_lognormal_fit_refuses_bad_counts():
         jr.fit_lognormal([1.0, 2.0], [0, 1], trials=0)
     with pytest.raises(ValueError, match="`failed` must count the failures"):
         jr.fit_lognormal([1.0, 2.0], [0, 3], trials=2)
+
+
+def test_a_multiple_stripe_analysis_is_the_binomial_fit_of_its_stripes():
+    """`levels`: every record scaled so that its own Sa(1 s) is each level
+    (the analyses' measures are the levels), one map; the fit over the
+    analyses is the binomial fit of the counts per level; a measure that
+    does not grow with amplitude, pulses, and `scales` with `levels` are
+    refused."""
+    suite = jr.Record.stack(jr.records.fema_p695()[:10])
+    levels = np.linspace(3.0, 9.0, 7)
+    frag = jr.fragility(
+        4.0, 1.0, jr.FixedBase(), suite, levels=levels, measure="sa:1.0"
+    )
+    np.testing.assert_allclose(
+        frag.im.reshape(7, 10), np.repeat(levels[:, None], 10, axis=1), rtol=1e-12
+    )
+    lv, k, n = frag.stripes("overturning")
+    assert np.all(np.diff(k) >= 0) and 0 < k[3] < n[3]  # not separated
+    median, beta = jr.fit_lognormal(lv, k, trials=n)
+    assert frag.median_overturning == pytest.approx(median, rel=1e-10)
+    assert frag.beta_overturning == pytest.approx(beta, rel=1e-10)
+    ds = frag.to_xarray()
+    assert ds.im.dims == ("level", "record")
+    with pytest.raises(ValueError, match="d5_95"):
+        jr.fragility(4.0, 1.0, jr.FixedBase(), suite, levels=levels, measure="d5_95")
+    with pytest.raises(ValueError, match="Record"):
+        pulse = jr.near_fault_pulse("Northridge JFA/SN")
+        jr.fragility(4.0, 1.0, jr.FixedBase(), pulse, levels=levels)
+    with pytest.raises(ValueError, match="not both"):
+        jr.fragility(4.0, 1.0, jr.FixedBase(), suite, levels=levels, scales=[1.0])
