@@ -25,7 +25,7 @@ from ._grid import Grid, check_fits_in_memory
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._labeled import coordinates
-from ._misc import as_float, broadcast_batch_shape, grid_axis, one_real_number, positive
+from ._misc import as_float, broadcast_batch_shape, grid_axis
 from ._model import check_base_and_motion
 from ._programs import chunk_program
 from ._results import (
@@ -35,7 +35,6 @@ from ._results import (
     REST_TOLERANCE,
     RTOL,
     SolverOptions,
-    analysis_window,
 )
 from ._scene import MotionLayout
 from ._store import ChunkStore
@@ -260,21 +259,18 @@ def behavior_map(
     check_executor(executor)
     lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
-    duration, until_decided = analysis_window(motion, duration)
-    duration = one_real_number("duration", duration, "finite and > 0 (s)")
-    positive("duration", duration)
+    duration, opts = SolverOptions.for_analysis(
+        motion,
+        duration,
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+        max_segments=max_segments,
+        rest_tolerance=rest_tolerance,
+        solver=solver,
+    )
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None
-    )
-    opts = SolverOptions.for_motion(
-        motion,
-        rtol,
-        atol,
-        max_steps,
-        max_segments,
-        rest_tolerance,
-        solver,
-        until_decided,
     )
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     check_fits_in_memory(int(np.prod(shape)) * max(np.size(restitution_factor), 1))

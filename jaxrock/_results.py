@@ -15,7 +15,9 @@ from ._misc import (
     at_least_zero,
     greater_than_zero,
     is_count,
+    one_real_number,
     parameter,
+    positive,
 )
 from ._scene import sample_count
 
@@ -276,6 +278,17 @@ class SolverOptions(AbstractChecked):
             solver or diffrax.Tsit5(),
             until_decided=until_decided,
         )
+
+    @classmethod
+    def for_analysis(cls, motion, duration, **options) -> tuple:
+        """(duration, options) of an analysis under `motion`: the window
+        (`analysis_window`: None runs until decided), checked as one number
+        > 0, and `for_motion`'s options from the keywords `rtol`, `atol`,
+        `max_steps`, `max_segments`, `rest_tolerance` and `solver`."""
+        duration, until_decided = analysis_window(motion, duration)
+        duration = one_real_number("duration", duration, "finite and > 0 (s)")
+        positive("duration", duration)
+        return duration, cls.for_motion(motion, **options, until_decided=until_decided)
 
 
 class History(eqx.Module):

@@ -54,7 +54,6 @@ from ._results import (
     History,
     Response,
     SolverOptions,
-    analysis_window,
 )
 from ._scene import closed_form_tail, prepare
 from ._xla import compiler_accepts
@@ -542,18 +541,15 @@ def simulate(
         (True, 'ROCKING')
     """
     _check_single(block, base, motion)
-    duration, until_decided = analysis_window(motion, duration)
-    duration = one_real_number("duration", duration, "finite and > 0 (s)")
-    positive("duration", duration)
-    opts = SolverOptions.for_motion(
+    duration, opts = SolverOptions.for_analysis(
         motion,
-        rtol,
-        atol,
-        max_steps,
-        max_segments,
-        rest_tolerance,
-        solver,
-        until_decided,
+        duration,
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+        max_segments=max_segments,
+        rest_tolerance=rest_tolerance,
+        solver=solver,
     )
     motion = motion.unlabeled()  # labels are static: they would recompile
     if not history:
