@@ -54,6 +54,33 @@ def _per_mode(name: str, value, modes: int) -> np.ndarray:
     return np.broadcast_to(x, (modes,))
 
 
+def _floor_rows(samples, length, periods, damping, participation):
+    """a_f at every sample of each row of `samples`, run to `length` samples
+    (zero past it): the modes carried from rest, the rows of one dt in one
+    compiled call."""
+    n = int(np.max(length))
+    rows = np.zeros((samples.rows.shape[0], n))
+    width = min(n, samples.rows.shape[1])
+    rows[:, :width] = samples.rows[:, :width]
+    floor = np.empty_like(rows)
+    omega = 2.0 * np.pi / periods
+    for dt in np.unique(samples.dt):
+        mine = samples.dt == dt
+        coefficients = np.concatenate(  # (8, modes)
+            [
+                oscillator_coefficients(periods[m : m + 1], damping[m], dt)
+                for m in range(periods.size)
+            ],
+            axis=-1,
+        )
+        coefficients = np.repeat(coefficients[:, None, :], int(np.sum(mine)), axis=1)
+        u, v = map(np.asarray, _modal_states(jnp.asarray(rows[mine]), coefficients))
+        ground = rows[mine][:, :, None]
+        relative = -ground - 2.0 * damping * omega * v - omega**2 * u
+        floor[mine] = rows[mine] + np.sum(participation * relative, axis=-1)
+    return np.where(np.arange(n) < length[:, None], floor, 0.0)
+
+
 def floor_motion(
     motion: AbstractGroundMotion, periods, damping=0.05, participation=1.0
 ) -> Record:
@@ -114,30 +141,10 @@ def floor_motion(
     samples = motion_samples(motion, tail=tail)  # (a pulse's: with the tail)
     record = isinstance(motion, Record)
     # A record's rows run on past its end, where the ground is still.
-    extra = np.round(tail / samples.dt).astype(int) if record else 0 * samples.length
-    length = samples.length + extra
-    n = int(np.max(length))
-    rows = np.zeros((samples.rows.shape[0], n))
-    width = min(n, samples.rows.shape[1])
-    rows[:, :width] = samples.rows[:, :width]
-    floor = np.empty_like(rows)
-    omega = 2.0 * np.pi / periods
-    for dt in np.unique(samples.dt):  # the rows of one dt in one compiled call
-        mine = samples.dt == dt
-        coefficients = np.concatenate(  # (8, modes)
-            [
-                oscillator_coefficients(periods[m : m + 1], damping[m], dt)
-                for m in range(modes)
-            ],
-            axis=-1,
-        )
-        coefficients = np.repeat(coefficients[:, None, :], int(np.sum(mine)), axis=1)
-        u, v = map(np.asarray, _modal_states(jnp.asarray(rows[mine]), coefficients))
-        ground = rows[mine][:, :, None]
-        relative = -ground - 2.0 * damping * omega * v - omega**2 * u
-        floor[mine] = rows[mine] + np.sum(participation * relative, axis=-1)
-    inside = np.arange(n) < length[:, None]
-    floor = np.where(inside, floor, 0.0)
+    extra = np.round(tail / samples.dt).astype(int)
+    length = samples.length + (extra if record else 0)
+    floor = _floor_rows(samples, length, periods, damping, participation)
+    n = floor.shape[-1]
     modes_label = ", ".join(f"{t:g}" for t in periods)
     if not record:  # a pulse, or a batch of pulses: one row a member
         batch = samples.batch_shape
