@@ -1,6 +1,8 @@
 """Fragility: probability of rocking and of overturning against an intensity
 measure, over an ensemble of motions, with lognormal fits by maximum likelihood."""
 
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -279,6 +281,22 @@ def _exceeded(parsed, outcome, max_rotation, max_base_displacement):
     return np.stack(columns, axis=-1) if columns else np.zeros((outcome.size, 0), bool)
 
 
+class ConfidenceBand(NamedTuple):
+    """A bootstrap confidence band of a fragility curve
+    (`Fragility.confidence_band`): at each IM of `im` the central `level` of
+    the refitted P(state | IM) lies between `lower` and `upper`; `median`
+    and `beta` hold the same quantiles of the refitted medians (units of IM)
+    and betas (-); `fitted` counts the resamples with a fit."""
+
+    im: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    median: np.ndarray
+    beta: np.ndarray
+    level: float
+    fitted: int
+
+
 class Fragility(eqx.Module):
     """The results of `fragility`: one row per analysis, and lognormal fits.
 
@@ -396,6 +414,73 @@ class Fragility(eqx.Module):
             return np.where(im > median, 1.0, np.where(im < median, 0.0, 0.5))
         return np.asarray(norm.cdf(np.log(im / median) / beta))
 
+    def _reached(self, which: str) -> np.ndarray:
+        """Whether each analysis reached `which`."""
+        if which == "rocking":
+            return self.rocked
+        if which == "overturning":
+            return self.overturned
+        return self.exceeded[:, self._state_index(which)]
+
+    def confidence_band(
+        self,
+        which: str = "overturning",
+        im=None,
+        *,
+        samples: int = 500,
+        level: float = 0.9,
+        seed: int = 0,
+    ) -> "ConfidenceBand":
+        """A confidence band of the fitted P(`which` | IM) by bootstrap over
+        the motions: `samples` times, the ensemble's motions (the records of
+        a suite, before scaling) drawn with replacement, their analyses
+        refitted (each motion's analyses weighted by the times it was drawn);
+        the band holds the central `level` of the refitted curves at each IM
+        of `im` (default: 200 points over the analyses' range), and the same
+        quantiles of the refitted medians and betas. Resamples without a fit
+        (every analysis or none reaching `which`) are left out
+        (`ConfidenceBand.fitted` counts the others). Reproducible for a `seed`.
+        """
+        if not (0 < level < 1) or int(samples) < 2:
+            raise ValueError(
+                f"`level` must be in (0, 1) and `samples` >= 2, got {level!r} "
+                f"and {samples!r}"
+            )
+        reached = self._reached(which)
+        ok = self.status == Status.SUCCESS
+        members = self.motion_index
+        count = int(members.max()) + 1
+        if im is None:
+            im = np.geomspace(self.im.min(), self.im.max(), 200)
+        im = np.asarray(im, dtype=float)
+        log_im = np.log(self.im)
+        rng = np.random.default_rng(seed)
+        fits = []
+        for _ in range(int(samples)):
+            drawn = np.bincount(rng.integers(0, count, count), minlength=count)
+            weight = (drawn[members] * ok).astype(float)
+            fits.append(_fit_counts(log_im, weight * reached, weight))
+        fits = np.array([f for f in fits if np.isfinite(f[0])]).reshape(-1, 2)
+        if fits.shape[0] < 2:
+            raise ValueError(f"too few resamples have a fit of {which!r}")
+        log_ratio = np.log(im[None, :] / fits[:, :1])
+        beta = fits[:, 1:]
+        step = np.where(log_ratio > 0, 1.0, np.where(log_ratio < 0, 0.0, 0.5))
+        curves = np.where(
+            beta > 0, norm.cdf(log_ratio / np.where(beta > 0, beta, 1.0)), step
+        )
+        q = [0.5 - level / 2, 0.5 + level / 2]
+        lower, upper = np.quantile(curves, q, axis=0)
+        return ConfidenceBand(
+            im=im,
+            lower=lower,
+            upper=upper,
+            median=np.quantile(fits[:, 0], q),
+            beta=np.quantile(fits[:, 1], q),
+            level=float(level),
+            fitted=int(fits.shape[0]),
+        )
+
     def stripes(self, which: str = "overturning"):
         """A multiple-stripe analysis's counts per level: (levels, k, n), the
         analyses of each level that reached `which` ("rocking",
@@ -403,12 +488,7 @@ class Fragility(eqx.Module):
         SUCCESS): the binomial data of the fit."""
         if self.levels is None:
             raise ValueError("`stripes` needs a multiple-stripe analysis (`levels`)")
-        if which == "rocking":
-            reached = self.rocked
-        elif which == "overturning":
-            reached = self.overturned
-        else:
-            reached = self.exceeded[:, self._state_index(which)]
+        reached = self._reached(which)
         ok = (self.status == Status.SUCCESS).reshape(self.levels.size, -1)
         k = np.sum(reached.reshape(self.levels.size, -1) & ok, axis=1)
         return self.levels, k, np.sum(ok, axis=1)

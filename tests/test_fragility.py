@@ -297,3 +297,33 @@ def test_a_multiple_stripe_analysis_is_the_binomial_fit_of_its_stripes():
         jr.fragility(4.0, 1.0, jr.FixedBase(), pulse, levels=levels)
     with pytest.raises(ValueError, match="not both"):
         jr.fragility(4.0, 1.0, jr.FixedBase(), suite, levels=levels, scales=[1.0])
+
+
+def test_a_bootstrap_band_over_records_holds_the_fit():
+    """`confidence_band`: records drawn with replacement and refitted; the
+    band holds the fitted curve where it is uncertain, widens with the
+    level, is reproducible for a seed, and its interval of medians holds the
+    fit's median."""
+    suite = jr.Record.stack(jr.records.fema_p695()[:10])
+    frag = jr.fragility(
+        4.0,
+        1.0,
+        jr.FixedBase(),
+        suite,
+        levels=np.linspace(3.0, 9.0, 7),
+        measure="sa:1.0",
+    )
+    band = frag.confidence_band(samples=200, level=0.9, seed=1)
+    narrow = frag.confidence_band(samples=200, level=0.5, seed=1)
+    assert band.fitted >= 190
+    assert np.all(band.lower <= narrow.lower + 1e-12)
+    assert np.all(narrow.upper <= band.upper + 1e-12)
+    fitted = frag.probability(band.im)
+    uncertain = (fitted > 0.05) & (fitted < 0.95)
+    assert np.all(band.lower[uncertain] <= fitted[uncertain])
+    assert np.all(fitted[uncertain] <= band.upper[uncertain])
+    assert band.median[0] < frag.median_overturning < band.median[1]
+    again = frag.confidence_band(samples=200, level=0.9, seed=1)
+    np.testing.assert_array_equal(again.lower, band.lower)
+    with pytest.raises(ValueError, match="level"):
+        frag.confidence_band(level=1.5)
