@@ -628,16 +628,12 @@ def fragility(
     suite of records (`Record.stack`) at every factor of `scales`, or any
     batched motion (a batched `MPPulse`, a suite) as it is. Or a
     multiple-stripe analysis: every record scaled so that its own `measure`
-    equals each of `levels` (a stripe of analyses per level, the records'
-    measures exactly the level), whose analyses at one level enter the
-    likelihood as one binomial term (Baker 2015; `Fragility.stripes` counts
-    them). The analyses run
-    as one behavior map with motion axes. The intensity measure of each
-    analysis is computed from its own scaled motion by `intensity_measure`
-    (the block's measures with this block): "pga" (m/s^2), "pgv" (m/s),
-    "pgd" (m), "sa:T" (Sa at T s and 5% damping, m/s^2), "arias" (m/s),
-    "cav" (m/s), "d5_95" (s), "pga_ratio", "pgv_ratio" or
-    "frequency_ratio". P(rocking) and P(overturning)
+    equals each of `levels`, whose analyses at one level enter the
+    likelihood as one binomial term (Baker 2015; `Fragility.stripes`). The
+    analyses run as one behavior map with motion axes. The intensity measure
+    of each analysis is computed from its own scaled motion by
+    `intensity_measure` (the block's measures with this block). P(rocking)
+    and P(overturning)
     are fitted as lognormal curves by maximum likelihood over the analyses
     whose status is SUCCESS, and so is each of `damage_states`, a ladder of
     states of increasing severity defined on the results: "uplift" (the block
@@ -690,9 +686,9 @@ def fragility(
     states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
+    if levels is not None and scales is not None:
+        raise ValueError("give `scales` or `levels`, not both")
     if levels is not None:
-        if scales is not None:
-            raise ValueError("give `scales` or `levels`, not both")
         motions, levels = _stripes(motions, levels, measure, slenderness, size)
     else:
         motions, scales = _ensemble(motions, scales)

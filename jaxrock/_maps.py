@@ -269,26 +269,40 @@ def behavior_map(
         rest_tolerance=rest_tolerance,
         solver=solver,
     )
+    own = _restitution(restitution_factor, restitution, lam, base)
+    grid = _checked_grid(lam, r, base, motion, own)
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None
     )
-    shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
-    check_fits_in_memory(int(np.prod(shape)) * max(np.size(restitution_factor), 1))
-    own = _restitution(restitution_factor, restitution, lam, base)
-    grid = Grid(lam, r, base, motion, own)
     chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size)
-    if progress is None:
-        progress = chunks > 1
     duration = as_float(duration)
     runner = _ChunkRunner(grid, duration, opts, padded, executor)
     if store is not None:
         key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
-
+    if progress is None:
+        progress = chunks > 1
     t = time.perf_counter()
-    # From an earlier run: its chunks, and the pilots' counts once all are there.
+    results, useful, executed = _run(runner, grid, chunk, chunks, store, progress)
+    seconds = time.perf_counter() - t
+    return _assemble(grid, results, seconds, useful, executed)
+
+
+def _checked_grid(lam, r, base, motion, own) -> Grid:
+    """The map's `Grid`, once it is known to fit in this machine's memory."""
+    shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
+    blocks = 1 if own is None else np.size(own[1])
+    check_fits_in_memory(int(np.prod(shape)) * blocks)
+    return Grid(lam, r, base, motion, own)
+
+
+def _run(runner: "_ChunkRunner", grid: Grid, chunk: int, chunks: int, store, progress):
+    """Every chunk's results, in order, and the pilots' useful and executed
+    lane-steps: the chunks an earlier run left in `store` (and its pilots'
+    counts, once all are there), the pilots (pass 1) and the missing chunks
+    of cells (pass 2), each written to `store` as it ends."""
     results, counts = ({}, None) if store is None else _stored(store, grid, chunks)
-    bar = _progress_bar(progress, chunks, len(results), type(base).__name__)
+    bar = _progress_bar(progress, chunks, len(results), type(grid.base).__name__)
     if counts is None:
         starts, useful, executed = _run_pilots(runner, grid, chunk)
         if store is not None:  # for `lane_efficiency` of a map read back whole
@@ -298,9 +312,7 @@ def behavior_map(
         useful, executed = counts
     if bar is not None:
         bar.close()
-    seconds = time.perf_counter() - t
-    results = [results[k] for k in range(chunks)]
-    return _assemble(grid, results, seconds, useful, executed)
+    return [results[k] for k in range(chunks)], useful, executed
 
 
 def _restitution(factor, coefficient, lam, base):
