@@ -39,6 +39,14 @@ class Block(AbstractChecked):
     on the block: it is checked where the two meet (`simulate`,
     `behavior_map`; `Status.INVALID_INPUT` for traced values).
 
+    The model assumes that the block never slides on its base. Given the
+    coefficient of friction mu of the interface (`friction`), an analysis
+    checks it: where the horizontal force that holds the block exceeds
+    mu times the normal force (|R_x| > mu R_y: in translation, while rocking,
+    or as the impulses of an impact), or the normal force would pull
+    (R_y < 0), the block would slide, and the analysis ends with
+    `Status.SLIDING` (its numbers those of the model without sliding).
+
     Parameters built from concrete values are checked at construction. Built
     from traced values (inside `jax.jit`, `jax.vmap` or `jax.jacfwd`) they
     cannot be: `simulate` then reports `Status.INVALID_INPUT` with NaN results.
@@ -50,6 +58,8 @@ class Block(AbstractChecked):
             re-uplift; default 1 (the momentum model), and f e_0 <= 1.
         restitution: e itself, in [0, 1], whatever the base (instead of
             `restitution_factor`: give one or the other).
+        friction: mu > 0, the coefficient of friction between the block and
+            its base (-); default None: no check of sliding.
 
     Raises:
         ValueError: a concrete parameter that is not a real number or lies
@@ -80,8 +90,17 @@ class Block(AbstractChecked):
         "restitution_factor", "1"
     )
     restitution: Float[Array, "..."] | None = _optional("restitution", "1")
+    # None: no check of sliding (statically: the slide condition is absent).
+    friction: Float[Array, "..."] | None = _optional("friction", "1")
 
-    def __init__(self, slenderness, size, restitution_factor=None, restitution=None):
+    def __init__(
+        self,
+        slenderness,
+        size,
+        restitution_factor=None,
+        restitution=None,
+        friction=None,
+    ):
         if restitution_factor is not None and restitution is not None:
             raise ValueError(
                 "give `restitution_factor` (a factor on the momentum model's e) or "
@@ -97,41 +116,54 @@ class Block(AbstractChecked):
             restitution_factor = jnp.ones(shape, dtype=float)
         self.restitution_factor = restitution_factor
         self.restitution = restitution
+        self.friction = friction
 
     def constraints(self):
         # Beyond these bounds b, h or alpha lose their precision in float64 long
         # before the shape stops being physical.
-        return [
-            Constraint(
-                "slenderness",
-                self.slenderness,
-                lambda v: (v >= 0.01) & (v <= 1000),
-                "finite, >= 0.01 and <= 1000",
-            ),
-            Constraint(
-                "size",
-                self.size,
-                lambda v: (v >= 1e-3) & (v <= 1000),
-                "finite, >= 0.001 and <= 1000 (m)",
-            ),
-        ] + (
+        return (
             [
                 Constraint(
-                    "restitution_factor",
-                    self.restitution_factor,
-                    lambda v: v > 0,
-                    "finite and > 0",
-                )
-            ]
-            if self.restitution is None
-            else [
+                    "slenderness",
+                    self.slenderness,
+                    lambda v: (v >= 0.01) & (v <= 1000),
+                    "finite, >= 0.01 and <= 1000",
+                ),
                 Constraint(
-                    "restitution",
-                    self.restitution,
-                    lambda v: (v >= 0) & (v <= 1),
-                    "finite, >= 0 and <= 1",
-                )
+                    "size",
+                    self.size,
+                    lambda v: (v >= 1e-3) & (v <= 1000),
+                    "finite, >= 0.001 and <= 1000 (m)",
+                ),
             ]
+            + (
+                [
+                    Constraint(
+                        "restitution_factor",
+                        self.restitution_factor,
+                        lambda v: v > 0,
+                        "finite and > 0",
+                    )
+                ]
+                if self.restitution is None
+                else [
+                    Constraint(
+                        "restitution",
+                        self.restitution,
+                        lambda v: (v >= 0) & (v <= 1),
+                        "finite, >= 0 and <= 1",
+                    )
+                ]
+            )
+            + (
+                []
+                if self.friction is None
+                else [
+                    Constraint(
+                        "friction", self.friction, lambda v: v > 0, "finite and > 0"
+                    )
+                ]
+            )
         )
 
     def applied_restitution(self, e0):
@@ -167,3 +199,13 @@ class Block(AbstractChecked):
     def uplift_acceleration(self) -> Float[Array, "..."]:
         """g tan(alpha) = g b / h (m/s^2): the absolute base acceleration to uplift."""
         return GRAVITY / self.slenderness
+
+    @property
+    def rest_acceleration(self) -> Float[Array, "..."]:
+        """The absolute base acceleration (m/s^2) below which nothing happens
+        to a block at rest on its base: it neither uplifts (g tan(alpha)) nor,
+        given its `friction` mu, slides (mu g). The level of every shortcut
+        that skips a block at rest."""
+        if self.friction is None:
+            return self.uplift_acceleration
+        return jnp.minimum(self.uplift_acceleration, self.friction * GRAVITY)

@@ -51,9 +51,9 @@ class ChunkTask(eqx.Module):
     None). `one_base` is the base of every cell without the cell axis, if
     they share one (else None: an ensemble of bases). `shared`: the carries
     the cells start from (their pilots'); `pilot`: a pass of pilots (see
-    `map_chunk`). `restitution`: the cells' `Block` keywords
-    (`restitution_factor` or `restitution`: a dict of one per-cell array),
-    or None for the momentum model's coefficient. Cells from `count` on are
+    `map_chunk`). `own`: the cells' own `Block` keywords
+    (`restitution_factor` or `restitution`, `friction`: a dict of per-cell
+    arrays), or None for none. Cells from `count` on are
     padding and never analysed.
     """
 
@@ -62,7 +62,7 @@ class ChunkTask(eqx.Module):
     base: Any
     motion: Any
     suite_index: Any
-    restitution: Any
+    own: Any
     shared: Any
     one_base: Any
     duration: Any
@@ -109,7 +109,7 @@ def map_chunk(task: ChunkTask, loop: _layout.Loop):
         task.base,
         signal,
         task.suite_index,
-        task.restitution,
+        task.own,
         task.shared,
         task.duration,
         task.opts,
@@ -162,7 +162,7 @@ class _Chunk(eqx.Module):
     base: AbstractIsolator
     motion: AbstractSignal
     suite_index: jax.Array | None
-    restitution: dict | None
+    block_keywords: dict | None
     shared: Carry
     duration: jax.Array
     opts: SolverOptions
@@ -200,8 +200,8 @@ class _Chunk(eqx.Module):
 
     @property
     def own(self) -> dict:
-        """The cells' own coefficient of restitution, as `Block` keywords."""
-        return {} if self.restitution is None else self.restitution
+        """The cells' own `Block` keywords (restitution, friction)."""
+        return {} if self.block_keywords is None else self.block_keywords
 
     def inputs(self, per_lane):
         """`gather`'s output as `flat_step` takes it (batched as `axes` says)."""
@@ -228,7 +228,7 @@ class _Chunk(eqx.Module):
     def closed_form(self, c, block, lane_motion):
         """The lanes finished in closed form (`_free.py`): free rocking on a
         fixed base once the ground is still."""
-        if not closed_form_tail(self.base):
+        if not closed_form_tail(block, self.base):
             return jnp.zeros_like(c.done)
         return free_rocking_ready(c, block, lane_motion.end_time)  # elementwise
 
@@ -301,7 +301,7 @@ class _Chunk(eqx.Module):
         pilots, whose responses are not used) finish in closed form."""
         blocks = Block(self.slenderness, self.size, **self.own)
         final = carries
-        if closed_form_tail(self.base):
+        if closed_form_tail(blocks, self.base):
             ready = is_active(carries, self.opts)
             ready = ready & ~self.pilot & (carries.phase != Phase.TRANSLATION)
             final = free_rocking(

@@ -42,12 +42,38 @@ class Args(eqx.Module):
     max_base_displacement: jnp.ndarray  # running max |u| so far (m)
     ground_still: jnp.ndarray  # the excitation is over (fixed for a segment)
     theta_ref: jnp.ndarray  # s theta where the rocking phase began (rad)
+    # The block slid already (its slide condition is disarmed); None: the
+    # block has no `friction`.
+    slid: jnp.ndarray | None = None
 
 
 def _geometry(block, theta, s):
     """c1 = h cos(theta) + s b sin(theta), s1 = s b cos(theta) - h sin(theta)."""
     sin, cos = sincos(theta)
     return block.h * cos + s * block.b * sin, s * block.b * cos - block.h * sin
+
+
+def _accelerations(t, y, args: Args):
+    """(theta'', u'' (None on a fixed base), x_g'') at (t, y) (rad/s^2, m/s^2)."""
+    theta, theta_dot, base_state = y
+    block, base = args.block, args.base
+    rocking = args.phase != Phase.TRANSLATION
+    s = jnp.where(rocking, args.sign, 1.0)
+    c1, s1 = _geometry(block, theta, s)
+    ag = args.motion.acceleration(t)
+    j = 4.0 / 3.0 * block.size**2
+    if fixed_base(base):
+        theta_ddot = -(c1 * ag + GRAVITY * s1) / j
+        return jnp.where(rocking, theta_ddot, 0.0), None, ag
+    f = base.force(base_state)
+    mu = base.block_mass_fraction
+    det = j - mu * c1**2
+    rhs_u = -ag - mu * s1 * theta_dot**2 - f
+    rhs_theta = -c1 * ag - GRAVITY * s1
+    u_ddot_rocking = (j * rhs_u - mu * c1 * rhs_theta) / det
+    theta_ddot = (rhs_theta - c1 * rhs_u) / det
+    u_ddot = jnp.where(rocking, u_ddot_rocking, -ag - f)
+    return jnp.where(rocking, theta_ddot, 0.0), u_ddot, ag
 
 
 def vector_field(t, y, args: Args):
@@ -58,33 +84,53 @@ def vector_field(t, y, args: Args):
     with mu = m / M and f = F / M; translation: u'' = -f - x_g'', theta'' = 0.
     Fixed base: theta'' = -(3 / (4 r^2)) (c1 x_g'' + g s1).
     """
-    theta, theta_dot, base_state = y
-    block, base = args.block, args.base
+    theta_dot, base_state = y[1], y[2]
     rocking = args.phase != Phase.TRANSLATION
-    s = jnp.where(rocking, args.sign, 1.0)
-    c1, s1 = _geometry(block, theta, s)
-    ag = args.motion.acceleration(t)
-    j = 4.0 / 3.0 * block.size**2
-    if fixed_base(base):
-        theta_ddot = -(c1 * ag + GRAVITY * s1) / j
-        return (
-            jnp.where(rocking, theta_dot, 0.0),
-            jnp.where(rocking, theta_ddot, 0.0),
-            base.rates(base_state, jnp.zeros_like(theta)),  # None: no base state
-        )
-    f = base.force(base_state)
-    mu = base.block_mass_fraction
-    det = j - mu * c1**2
-    rhs_u = -ag - mu * s1 * theta_dot**2 - f
-    rhs_theta = -c1 * ag - GRAVITY * s1
-    u_ddot_rocking = (j * rhs_u - mu * c1 * rhs_theta) / det
-    theta_ddot = (rhs_theta - c1 * rhs_u) / det
-    u_ddot = jnp.where(rocking, u_ddot_rocking, -ag - f)
+    theta_ddot, u_ddot, _ = _accelerations(t, y, args)
+    if u_ddot is None:
+        u_ddot = jnp.zeros_like(theta_dot)  # (a fixed base has no base state)
     return (
         jnp.where(rocking, theta_dot, 0.0),
-        jnp.where(rocking, theta_ddot, 0.0),
-        base.rates(base_state, u_ddot),
+        theta_ddot,
+        args.base.rates(base_state, u_ddot),
     )
+
+
+def contact_forces(t, y, args: Args):
+    """(R_x, R_y) per unit m (m/s^2): the horizontal and the normal force of
+    the base on the block, from the motion of its centre of mass.
+
+    Relative to the pivot the centre of mass is at X = -s1, Y = c1
+    (`_geometry`), so X' = c1 theta', Y' = s1 theta' and
+    R_x = u'' + x_g'' + c1 theta'' + s1 theta'^2 and
+    R_y = g + s1 theta'' - c1 theta'^2; in translation R_x = u'' + x_g'',
+    R_y = g."""
+    theta, theta_dot = y[0], y[1]
+    rocking = args.phase != Phase.TRANSLATION
+    c1, s1 = _geometry(args.block, theta, jnp.where(rocking, args.sign, 1.0))
+    theta_ddot, u_ddot, ag = _accelerations(t, y, args)
+    a_base = ag if u_ddot is None else u_ddot + ag
+    w2 = theta_dot**2
+    return (
+        a_base + c1 * theta_ddot + s1 * w2,
+        GRAVITY + s1 * theta_ddot - c1 * w2,
+    )
+
+
+def impact_friction(block: Block, base: AbstractIsolator):
+    """The coefficient of friction that an impact needs (-): the ratio
+    |P_x| / P_y of the impulses of the base on the block at the new corner.
+
+    With theta'+ = e theta'- the block's centre of mass changes its velocity
+    by h (theta'+ - theta'-) horizontally and b (1 + e) |theta'-| upwards,
+    and the base's by -mu h (theta'+ - theta'-) (`impact`), so
+    |P_x| / P_y = (1 - mu) (h / b) (1 - e) / (1 + e), whatever theta'-. An
+    impact after which the rest rule ends rocking stands for a chatter of
+    such impacts: the same ratio, with e clipped at 0 (a block that stops
+    dead)."""
+    e = jnp.maximum(restitution(block, base)[0], 0.0)
+    mu = base.block_mass_fraction
+    return (1.0 - mu) * block.slenderness * (1.0 - e) / (1.0 + e)
 
 
 def base_acceleration_bound(t, window, base_state, base, motion):

@@ -17,6 +17,8 @@ pendulum with z in closed form fires at every reversal of u' instead, see
 (isolated bases only) ends the analysis once the ground is still and the base's
 energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
+"slide" (blocks with a `friction` only) fires where the friction needed to
+hold the block reaches what its interface gives (`condition_slide`).
 "guard" catches a phase begun on the wrong side of a near double root of theta'
 (see `condition_guard`). Diffrax lets the first condition in PyTree order win
 when several fire in one step; `transition` then redoes the segment up to
@@ -31,7 +33,7 @@ import jax.numpy as jnp
 import optimistix as optx
 from jaxtyping import Array, Float
 
-from ._dynamics import Args, Phase, absolute_base_acceleration
+from ._dynamics import Args, Phase, absolute_base_acceleration, contact_forces
 
 
 def _by_phase(phase, translation, rising, falling):
@@ -73,7 +75,7 @@ def quiet(y, args: Args):
     and the base's energy too low to uplift it or to raise max |u|."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
     value = jnp.maximum(
-        u_bound - args.max_base_displacement, f_bound - args.block.uplift_acceleration
+        u_bound - args.max_base_displacement, f_bound - args.block.rest_acceleration
     )
     # Armed per segment (not by t >= end_time inside one): a condition that jumped
     # within a segment would be "located" at the jump, with a meaningless
@@ -114,6 +116,19 @@ def condition_base(t, y, args: Args, **kwargs):
     del t, kwargs
     u, u_dot = y[2][0], y[2][1]
     return jnp.maximum(jnp.sign(u) * u_dot, args.max_base_displacement - jnp.abs(u))
+
+
+def condition_slide(t, y, args: Args, **kwargs):
+    """mu R_y - |R_x| (m/s^2, `contact_forces`): <= 0 where the block's
+    friction can no longer hold it (or the normal force would pull).
+
+    Disarmed (1) once the block slid, and past its corner's vertical
+    (s theta >= alpha), where it falls over: a fall that slides at its
+    corner still ends on the block's side."""
+    del kwargs
+    r_x, r_y = contact_forces(t, y, args)
+    armed = ~args.slid & (args.sign * y[0] < args.block.alpha)
+    return jnp.where(armed, args.block.friction * r_y - jnp.abs(r_x), 1.0)
 
 
 def newton_in_bracket(t, value, slope, lower, upper, inclusive: bool):

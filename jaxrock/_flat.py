@@ -41,7 +41,7 @@ from ._model import (
     transition,
     with_start_conditions,
 )
-from ._scene import fixed_base, rest_jumps
+from ._scene import fixed_base, rest_jumps, rocking_reads_all
 from ._signal import AbstractAcceleration, accelerations_at
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
@@ -349,7 +349,7 @@ def _locate(a: _Attempt, opts, unfired=()):
     or a linear isolator, and made the first map about 20% slower to start
     (compiling).
     """
-    conditions = jax.tree_util.tree_leaves(event_conditions(a.args.base))
+    conditions = jax.tree_util.tree_leaves(event_conditions(a.args.block, a.args.base))
     evaluate = _dense_in_s(opts.solver, a)
     h = a.t1 - a.t0
 
@@ -474,7 +474,7 @@ def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
     h = jnp.where(c.rocked, a.y0[2] - motion.translation_state(k), 0.0)
     u_bound, f_bound = base.free_vibration_bounds(h)
     margin = 1.0 - 1e-9  # rounding
-    acceleration = block.uplift_acceleration * margin - f_bound
+    acceleration = block.rest_acceleration * margin - f_bound
     displacement = jnp.where(c.rocked, c.max_u * margin - u_bound, jnp.inf)
     m = motion.translation_first(k, acceleration, displacement)
     t = motion.sample_time(m)
@@ -573,7 +573,8 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
     - likewise on an isolator the force (and a friction pendulum's z, costly
       in closed form) enters only the uplift conditions, and "quiet" (the
       base's free-vibration bounds, armed in translation only) too: a batch in
-      which every lane rocks evaluates neither.
+      which every lane rocks evaluates neither;
+    - but a block's slide condition (`rocking_reads_all`) reads both.
     """
 
     def locate(sub, motion, axes, unfired=()):
@@ -584,6 +585,8 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
+    if rocking_reads_all(sub.args.block):
+        return locate(sub, motion, motion_axes)
     if fixed_base(sub.args.base):
         return jax.lax.cond(
             translating,
@@ -591,7 +594,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
             lambda: locate(sub, _Still(), None),
         )
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
-    quiet = event_conditions(sub.args.base)._fields.index("quiet")
+    quiet = event_conditions(sub.args.block, sub.args.base)._fields.index("quiet")
     return jax.lax.cond(
         translating,
         lambda: locate(sub, motion, motion_axes),

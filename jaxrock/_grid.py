@@ -64,12 +64,15 @@ class Grid:
     translation phase (see `_chunk.map_chunk`), which the coefficient of
     restitution does not enter. `restitution` is None (the momentum model's
     e), or ("restitution_factor" or "restitution", a scalar or 1-D array of
-    values: the blocks' own, an axis if 1-D). `inputs` gives the per-cell
-    arrays of chosen cells."""
+    values: the blocks' own, an axis if 1-D). `friction` is None (no check
+    of sliding) or the blocks' coefficient of friction, one number (cells
+    and pilots: sliding in translation is the pilots' to find). `inputs`
+    gives the per-cell arrays of chosen cells."""
 
-    def __init__(self, lam, r, base, motion, restitution=None):
+    def __init__(self, lam, r, base, motion, restitution=None, friction=None):
         self.lam, self.r, self.base, self.motion = lam, r, base, motion
         self.restitution = restitution
+        self.friction = friction
         self.motion_shape = motion.batch_shape
         self.motion_names = motion.names() if self.motion_shape else None
         self.layout = MotionLayout.of(motion)
@@ -95,27 +98,30 @@ class Grid:
         self.cell_inputs = self.inputs(ib, im, ie, il, ir)
 
     def inputs(self, ib, im, ie, il, ir):
-        """(slenderness, size, base, motion, restitution) of the cells (ib,
-        im, ie, il, ir) (1-D index arrays); the motion is None for one motion
-        of every cell, the index into the suite for a suite of records; the
-        restitution (`Block`'s `restitution_factor` or `restitution`) None
-        for the momentum model's, and for pilots (`ie` None)."""
+        """(slenderness, size, base, motion, own) of the cells (ib, im, ie,
+        il, ir) (1-D index arrays); the motion is None for one motion of every
+        cell, the index into the suite for a suite of records; `own` the
+        blocks' own `Block` keywords (a dict of per-cell arrays, None if none):
+        the restitution (`restitution_factor` or `restitution`; none for
+        pilots, `ie` None) and the `friction`."""
         if self.layout is MotionLayout.ONE_RECORD:
             motion = None
         elif self.layout is MotionLayout.SUITE:
             motion = im
         else:
             motion = _cells_of(self.motion, self.motion_shape, im)
-        restitution = None
+        own = {}
         if self.restitution is not None and ie is not None:
             name, values = self.restitution
-            restitution = {name: np.reshape(values, -1)[ie]}
+            own[name] = np.reshape(values, -1)[ie]
+        if self.friction is not None:
+            own["friction"] = np.full(np.shape(il), self.friction)
         return (
             self.lam[il],
             self.r[ir],
             _cells_of(self.base, self.base_shape, ib),
             motion,
-            restitution,
+            own or None,
         )
 
     def blank_carries(self):
@@ -131,7 +137,7 @@ class Grid:
         one_base = self.base if self.base_shape == () else None
         proto = jax.eval_shape(
             _initial_carry,
-            Block(self.lam[0], self.r[0]),
+            Block(self.lam[0], self.r[0], friction=self.friction),
             first(base),
             motion.unlabeled(),
             one_base,
@@ -142,14 +148,16 @@ class Grid:
 
     def store_key(self, duration, chunk, opts) -> str:
         """What identifies the map's chunks in a store (the keys of a map
-        with neither `until_decided` nor its own restitution are those of the
-        maps before either existed: their stores resume)."""
+        with neither `until_decided`, its own restitution nor a friction are
+        those of the maps before any existed: their stores resume)."""
         extra = {}
         if bool(opts.until_decided):
             extra["until_decided"] = True
         if self.restitution is not None:
             name, values = self.restitution
             extra[name] = np.asarray(values, dtype=float).tolist()
+        if self.friction is not None:
+            extra["friction"] = self.friction
         tolerances = (opts.rtol, opts.atol, opts.rest_tolerance, opts.step)
         return json.dumps(
             dict(

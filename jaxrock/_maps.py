@@ -115,7 +115,7 @@ class _ChunkRunner:
         def part(tree):
             return jax.tree_util.tree_map(lambda x: np.asarray(x)[take], tree)
 
-        lam_k, r_k, base_k, motion_k, restitution_k = inputs
+        lam_k, r_k, base_k, motion_k, own_k = inputs
         layout = self.grid.layout
         per_cell = layout is MotionLayout.PER_CELL
         return ChunkTask(
@@ -124,7 +124,7 @@ class _ChunkRunner:
             base=part(base_k),
             motion=part(motion_k) if per_cell else self.motion,
             suite_index=part(motion_k) if layout is MotionLayout.SUITE else None,
-            restitution=part(restitution_k),
+            own=part(own_k),
             shared=part(shared),
             one_base=self.one_base,
             duration=self.duration,
@@ -210,6 +210,7 @@ def behavior_map(
     executor: Executor | None = None,
     restitution_factor=None,
     restitution=None,
+    friction: float | None = None,
 ) -> "BehaviorMap":
     """Classify every block of the grid `slenderness` x `size` (1-D arrays).
 
@@ -241,6 +242,8 @@ def behavior_map(
     them: one value for every block, or a 1-D array of values that adds an
     axis after the motions' (`coordinates` name it); default the momentum
     model's e_0. f e_0 <= 1 is checked for every slenderness of the grid.
+    `friction` (mu > 0, one number) checks every block for sliding, as
+    `Block` does: a cell whose block would slide is `Status.SLIDING`.
 
     `store=DIR` writes each finished chunk to DIR (resumable: a rerun computes
     only the missing chunks, dealt the cells as the first run dealt them; a
@@ -270,7 +273,8 @@ def behavior_map(
         solver=solver,
     )
     own = _restitution(restitution_factor, restitution, lam, base)
-    grid = _checked_grid(lam, r, base, motion, own)
+    friction = _friction(friction)
+    grid = _checked_grid(lam, r, base, motion, own, friction)
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None
     )
@@ -288,12 +292,25 @@ def behavior_map(
     return _assemble(grid, results, seconds, useful, executed)
 
 
-def _checked_grid(lam, r, base, motion, own) -> Grid:
+def _checked_grid(lam, r, base, motion, own, friction) -> Grid:
     """The map's `Grid`, once it is known to fit in this machine's memory."""
     shape = broadcast_batch_shape(base) + motion.batch_shape + (lam.size, r.size)
     blocks = 1 if own is None else np.size(own[1])
     check_fits_in_memory(int(np.prod(shape)) * blocks)
-    return Grid(lam, r, base, motion, own)
+    return Grid(lam, r, base, motion, own, friction)
+
+
+def _friction(friction) -> float | None:
+    """The blocks' coefficient of friction for `Grid`: None, or one number
+    in its range (`Block`)."""
+    if friction is None:
+        return None
+    if np.ndim(friction) != 0:
+        raise ValueError(
+            f"`friction` must be one number, got shape {np.shape(friction)}"
+        )
+    Block(1.0, 1.0, friction=friction)
+    return float(friction)
 
 
 def _run(runner: "_ChunkRunner", grid: Grid, chunk: int, chunks: int, store, progress):

@@ -28,6 +28,7 @@ from ._dynamics import (
     absolute_base_acceleration,
     base_acceleration_bound,
     impact,
+    impact_friction,
     restitution,
     restitution_valid,
     rests_at_impact,
@@ -38,6 +39,7 @@ from ._events import (
     condition_guard,
     condition_quiet,
     condition_rate,
+    condition_slide,
     quiet,
 )
 from ._ground import AbstractGroundMotion
@@ -92,6 +94,9 @@ class Carry(eqx.Module):
     # Where the scene has `rest_jumps`, else None: the first sample at which
     # a lane at rest searches for a jump (`_flat._rest_jump`).
     search_from: Float[Array, ""] | None = None
+    # Of a block with a `friction`, else None: the friction needed to hold it
+    # exceeded its own at some time (`condition_slide`, `impact_friction`).
+    slid: Bool[Array, ""] | None = None
 
 
 def _uplift_now(t, y, phase, block, base, motion):
@@ -139,8 +144,26 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
         quiet_end=quiet_end(t, block, base, motion),
         search_from=zero if rest_jumps(motion) else None,
+        slid=None if block.friction is None else jnp.asarray(False),
     )
+    if c.slid is not None:
+        slid = slides_now(c, block, base, motion) & valid
+        c = eqx.tree_at(lambda c: c.slid, c, slid)
     return with_start_conditions(c, block, base, motion)
+
+
+def slides_now(c: Carry, block, base, motion, t=None, y=None):
+    """Whether the block has slid by (t, y) in the carry's phase (by default
+    the carry's own time and state): it had, or friction cannot hold it
+    there (`condition_slide` <= 0: a condition that starts a segment at
+    <= 0 never fires). None without a `friction`."""
+    if c.slid is None:
+        return None
+    t = c.t if t is None else t
+    y = c.y if y is None else y
+    return c.slid | (
+        condition_slide(t, y, segment_args(c, block, base, motion, t)) <= 0
+    )
 
 
 def is_active(c: Carry, opts):
@@ -162,7 +185,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     the segment, the largest step (None: no limit) and the step-size controller."""
     active = is_active(c, opts)
     args = segment_args(c, block, base, motion)
-    conditions = event_conditions(base)
+    conditions = event_conditions(block, base)
     shaking, t_stop = segment_end(c, motion, duration)
     t_stop = jnp.minimum(t_stop, c.t_limit)
     max_step = motion.max_step
@@ -178,7 +201,7 @@ def segment_args(c: Carry, block, base, motion, t=None) -> Args:
     """What the vector field and the conditions of the carry's segment read
     (at t, by default the carry's)."""
     t = c.t if t is None else t
-    args = (c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref)
+    args = (c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref, c.slid)
     return Args(block, base, motion, *args)
 
 
@@ -189,28 +212,28 @@ def with_start_conditions(c: Carry, block, base, motion) -> Carry:
     if not carries_conditions(base):
         return c
     args = segment_args(c, block, base, motion)
-    conditions = jax.tree_util.tree_leaves(event_conditions(base))
+    conditions = jax.tree_util.tree_leaves(event_conditions(block, base))
     values = tuple(cond(c.t, c.y, args) for cond in conditions)
     return eqx.tree_at(lambda c: c.start_conditions, c, values, is_leaf=is_none)
 
 
 def quiet_level(c: Carry, block, base):
     """|x_g''| below which nothing happens: a block at rest on a fixed base
-    uplifts only where |x_g''| reaches g tan(alpha); 0 while it rocks; None
-    on an isolated base (its state moves)."""
+    uplifts (or slides) only where |x_g''| reaches `Block.rest_acceleration`;
+    0 while it rocks; None on an isolated base (its state moves)."""
     if not fixed_base(base):
         return None
     resting = c.phase == Phase.TRANSLATION
-    return jnp.where(resting, block.uplift_acceleration, 0.0)
+    return jnp.where(resting, block.rest_acceleration, 0.0)
 
 
 def quiet_end(t, block, base, motion):
     """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
-    uplift level from t on (`RecordSignal.quiet_end`), where the scene
+    `rest_acceleration` from t on (`RecordSignal.quiet_end`), where the scene
     `carries_quiet_end`; else None."""
     if not carries_quiet_end(base, motion):
         return None
-    return motion.quiet_end(t, block.uplift_acceleration)
+    return motion.quiet_end(t, block.rest_acceleration)
 
 
 # A redo ends at least this long (s) before the event it replaces.
@@ -248,15 +271,18 @@ class Conditions(NamedTuple):
     guard: Callable  # a rocking phase begun on the wrong side of a double root
     base_peak: Callable | None = None  # a new peak of |u| (isolated bases)
     quiet: Callable | None = None  # nothing can happen any more (isolated bases)
+    slide: Callable | None = None  # friction cannot hold the block (a `friction`)
 
 
-def event_conditions(base) -> Conditions:
-    """The conditions of a segment on `base` (a fixed base has no base state)."""
+def event_conditions(block, base) -> Conditions:
+    """The conditions of a segment of `block` on `base` (a fixed base has no
+    base state, a block without a `friction` no check of sliding)."""
+    slide = None if block.friction is None else condition_slide
     if fixed_base(base):
-        return Conditions(condition_angle, condition_rate, condition_guard)
+        return Conditions(condition_angle, condition_rate, condition_guard, slide=slide)
     peak = base.peak_condition() or condition_base
     return Conditions(
-        condition_angle, condition_rate, condition_guard, peak, condition_quiet
+        condition_angle, condition_rate, condition_guard, peak, condition_quiet, slide
     )
 
 
@@ -311,6 +337,7 @@ class _Events(NamedTuple):
     settled: Array  # never really lifted (or an apex at theta = 0): at rest
     base_peak: Array  # "base_peak" (isolated bases)
     quiet: Array  # "quiet" (isolated bases)
+    slide: Array  # "slide" (blocks with a `friction`)
     towards_plus: Array  # an uplift is about the corner at x = +b
 
 
@@ -336,6 +363,7 @@ EVENT_TABLE = (
     _Rule("guard_down", Phase.FALLING, EventKind.REVERSAL),
     _Rule("settled", Phase.TRANSLATION, EventKind.REST),
     _Rule("base_peak", None, EventKind.BASE_PEAK),
+    _Rule("slide", None, EventKind.SLIDE),
 )
 
 
@@ -368,6 +396,7 @@ def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
         settled=(rising & guard & (c.theta_ref <= 0)) | grounded,
         base_peak=hit(mask.base_peak),
         quiet=hit(mask.quiet),
+        slide=hit(mask.slide),
         towards_plus=angle,
     )
 
@@ -475,7 +504,7 @@ def _advance(
     # leaves the fate open unless the block can no longer overturn.
     open_fate = can_overturn(phase, sign, y, block, base) & ~still & ~ev.overturn
     undecided = over & opts.until_decided & open_fate
-    return Carry(
+    new = Carry(
         t=t,
         y=y,
         phase=phase,
@@ -500,7 +529,19 @@ def _advance(
         quiet_end=c.quiet_end,
         search_from=c.search_from,
         start_conditions=c.start_conditions,
+        slid=c.slid,
     )
+    if c.slid is None:
+        return new
+    # At an impact, in the impulses; after any event, in the phase that
+    # follows (whose condition may start at <= 0).
+    slid = (
+        c.slid
+        | ev.slide
+        | (ev.impact & (block.friction < impact_friction(block, base)))
+    )
+    new = eqx.tree_at(lambda n: n.slid, new, slid)
+    return eqx.tree_at(lambda n: n.slid, new, slides_now(new, block, base, motion))
 
 
 def _merge_redo(c: Carry, new: Carry, active, redo, limit) -> Carry:
@@ -545,7 +586,7 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     redo = active & end.event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)
     redo = redo & (end.t - 2.0 * REDO_MARGIN > c.t)
     # The solver's mask holds the conditions present, in order: named again.
-    conditions = jax.tree_util.tree_structure(event_conditions(base))
+    conditions = jax.tree_util.tree_structure(event_conditions(block, base))
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
     ev = _decode(c, mask, end.event, end.y[0])
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
@@ -607,6 +648,9 @@ def response(c: Carry, block, opts) -> Response:
     # and nothing after it can be trusted.
     lost = ~c.overturned & (c.max_theta > 0.5 * jnp.pi)
     status = jnp.where(lost & (status == Status.SUCCESS), Status.SOLVER_FAILED, status)
+    if c.slid is not None:
+        final = (status == Status.SUCCESS) | (status == Status.UNDECIDED)
+        status = jnp.where(c.slid & final, Status.SLIDING, status)
     outcome = jnp.where(
         c.overturned,
         Outcome.OVERTURNED,

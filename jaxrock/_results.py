@@ -72,6 +72,12 @@ class Status(IntEnum):
             default `duration`) reached `DECISION_WINDOW` s after the
             excitation with the block still able to uplift, rock on or
             overturn (5).
+        SLIDING: the block has a `friction` mu, and at some time the
+            horizontal force that holds it exceeded mu times the normal
+            force (in translation, rocking before it passes its corner's
+            vertical, or at an impact): it would slide, which the model does
+            not follow; the results are those of the model without sliding
+            (6). A failure above takes precedence.
 
     Examples:
         >>> import jaxrock as jr
@@ -91,6 +97,8 @@ class Status(IntEnum):
     INVALID_INPUT = 4
     # Run until decided, the block's fate still open at the window's end.
     UNDECIDED = 5
+    # The friction needed to hold the block exceeded its `friction`.
+    SLIDING = 6
 
 
 class EventKind(IntEnum):
@@ -117,6 +125,8 @@ class EventKind(IntEnum):
         FAILURE: the segment's solve failed (see `Status`).
         QUIET: the ground is still and the energy left can neither uplift the
             block nor raise max |u|: the analysis ends early.
+        SLIDE: the friction needed to hold a block with a `friction` reaches
+            its own (`Status.SLIDING`); the analysis goes on without sliding.
 
     Examples:
         >>> import jaxrock as jr
@@ -134,6 +144,7 @@ class EventKind(IntEnum):
     BASE_PEAK = 7  # a new maximum of |u| (z in closed form: any reversal of u')
     FAILURE = 8
     QUIET = 9  # ground still and too little energy left to uplift or move further
+    SLIDE = 10  # the friction needed to hold the block reaches its own
 
 
 # The defaults of every analysis (`simulate`, maps, design): integrator
@@ -440,6 +451,8 @@ class Response(eqx.Module):
             f"impacts = {int(self.impacts)}, uplift at "
             + ("never" if np.isnan(uplift) else f"{uplift:.6g} s")
         )
-        if int(self.status) != Status.SUCCESS:
+        if int(self.status) == Status.SLIDING:
+            text += " [status SLIDING: the block would slide on its base]"
+        elif int(self.status) != Status.SUCCESS:
             text += f" [status {Status(int(self.status)).name}: not converged]"
         return text

@@ -10,7 +10,10 @@ about the scene that choose a code path:
   uplifts only where |x_g''| reaches its level, so its steps may skip to
   there (`_model.quiet_level`); only the uplift conditions read the ground.
 - `closed_form_tail`: free rocking once the ground is still has a closed
-  form (`_free.py`), and a map finishes it without steps.
+  form (`_free.py`), and a map finishes it without steps (unless the block's
+  sliding is checked).
+- `rocking_reads_all`: the conditions of a rocking block read the ground and
+  the base's force (a block whose sliding is checked).
 - `carries_quiet_end`: under a record, a block at rest on a fixed base
   skips samples to its next possible uplift, found in the record's table of
   peaks and carried from step to step.
@@ -28,6 +31,7 @@ Adding an isolator: its own module; if it brings a shortcut, a fact here.
 
 import enum
 
+from ._block import Block
 from ._isolators import AbstractIsolator, FixedBase
 from ._record import Record
 from ._signal import AbstractSignal, ClosedFormSignal, RecordSignal
@@ -53,10 +57,19 @@ def fixed_base(base: AbstractIsolator) -> bool:
     return isinstance(base, FixedBase)
 
 
-def closed_form_tail(base: AbstractIsolator) -> bool:
+def closed_form_tail(block: Block, base: AbstractIsolator) -> bool:
     """A map finishes a rocking block's free rocking once the ground is still
-    in closed form (static): the base answers (`free_rocking_closed_form`)."""
-    return base.free_rocking_closed_form
+    in closed form (static): the base answers (`free_rocking_closed_form`),
+    for a block without a `friction` (the closed form skips the forces that
+    hold the block)."""
+    return base.free_rocking_closed_form and block.friction is None
+
+
+def rocking_reads_all(block: Block) -> bool:
+    """The event conditions of a rocking block read the ground's acceleration
+    and the base's force (static): a block with a `friction`, whose slide
+    condition reads both (`_events.condition_slide`)."""
+    return block.friction is not None
 
 
 def carries_quiet_end(base: AbstractIsolator, signal: AbstractSignal) -> bool:

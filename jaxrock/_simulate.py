@@ -171,7 +171,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
 
     def tail(c):
         """The analysis goes on in closed form from here."""
-        if not closed_form_tail(base):
+        if not closed_form_tail(block, base):
             return jnp.asarray(False)
         ready = free_rocking_ready(c, block, motion.end_time)
         return opts.until_decided & is_active(c, opts) & ready
@@ -186,7 +186,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
     valid = opts.valid() & jnp.isfinite(duration) & (duration > 0)
     motion = prepare(motion)
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
-    if closed_form_tail(base):
+    if closed_form_tail(block, base):
         carry = free_rocking(carry, block, base, duration, opts, tail(carry))
     return response(carry, block, opts)
 

@@ -161,6 +161,16 @@ def _damping(text: str) -> float:
     return value
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -398,7 +408,7 @@ def _add_map(sub) -> None:
         action="store_true",
         help="only the chosen base, not the fixed base beside it",
     )
-    _add_restitution_option(m)
+    _add_block_interface_options(m)
     m.add_argument(
         "--chunk-size",
         type=_positive_int,
@@ -436,6 +446,7 @@ def _add_fragility(sub) -> None:
     _add_base_options(f, "fragility.png", "")
     _add_motion_options(f)
     _add_block_options(f)
+    _add_block_interface_options(f)
     f.add_argument(
         "--scales",
         type=_range,
@@ -509,10 +520,11 @@ def _add_simulate(sub) -> None:
     _add_base_options(s, "response.png", "")
     _add_motion_options(s)
     _add_block_options(s)
-    _add_restitution_option(s)
+    _add_block_interface_options(s)
 
 
-def _add_restitution_option(parser) -> None:
+def _add_block_interface_options(parser) -> None:
+    """The block's contact with its base: restitution and friction."""
     parser.add_argument(
         "--restitution-factor",
         type=float,
@@ -520,6 +532,15 @@ def _add_restitution_option(parser) -> None:
         help="f > 0: the coefficient of restitution at a re-uplift is f e0, e0 "
         "the momentum model's (from the block's slenderness and the base's mass "
         "ratio); f e0 <= 1; default 1",
+    )
+    parser.add_argument(
+        "--block-friction",
+        type=_positive_float,
+        metavar="MU",
+        help="mu > 0, the coefficient of friction between block and base (not "
+        "the isolator's --friction): an "
+        "analysis in which the block would slide ends with status SLIDING; "
+        "default: no check",
     )
 
 
@@ -1014,7 +1035,12 @@ def _run_simulate(a) -> int:
     import jaxrock as jr
     from jaxrock import plot
 
-    block = jr.Block(a.slenderness, a.size, restitution_factor=a.restitution_factor)
+    block = jr.Block(
+        a.slenderness,
+        a.size,
+        restitution_factor=a.restitution_factor,
+        friction=a.block_friction,
+    )
     r = jr.simulate(block, base, motion, history=True)
     print(r.summary())
     _save(plot.response(r), out)
@@ -1044,10 +1070,15 @@ def _run_fragility(a) -> int:
         measure=a.measure,
         damage_states=a.damage_states,
         progress=False,
+        restitution_factor=a.restitution_factor,
+        friction=a.block_friction,
     )
+    sliding = int((frag.status == jr.Status.SLIDING).sum())
     print(
         f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
-        f"{int(frag.overturned.sum())} overturned; median {a.measure} "
+        f"{int(frag.overturned.sum())} overturned"
+        + (f", {sliding} sliding (not fitted)" if sliding else "")
+        + f"; median {a.measure} "
         f"to overturn {frag.median_overturning:.4g} "
         f"(beta {frag.beta_overturning:.3g})"
     )
@@ -1084,6 +1115,7 @@ def _run_map(a) -> int:
             store=None if a.store is None else os.path.join(a.store, type(b).__name__),
             executor=executor,
             restitution_factor=a.restitution_factor,
+            friction=a.block_friction,
         )
 
     # The maps run at once, in threads: one traces its loop while another

@@ -9,7 +9,7 @@ from ._intensity import measure_attrs
 from ._maps import BehaviorMap
 from ._record import Record
 from ._response_spectrum import ResponseSpectrum
-from ._results import Outcome, Response
+from ._results import Outcome, Response, Status
 from ._spectrum import OverturningSpectrum, linearized_overturning_amplitude
 
 _COLOURS = {
@@ -63,11 +63,22 @@ def response(resp: Response, axes=None):
     return fig
 
 
+# Cells that are not SUCCESS: (colour, marker, label) by status (None: the
+# failures).
+_STATUS_MARKERS = {
+    Status.SLIDING: ("tab:orange", "^", "slides"),
+    Status.UNDECIDED: ("tab:gray", "+", "undecided"),
+    None: ("k", "x", "not converged"),
+}
+
+
 def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     """The paper's behavior map: a dot per analysis over (lambda, r).
 
-    Blue no rocking, green rocking, red overturning; cells whose analysis did not
-    converge are drawn as black crosses. Returns the axes.
+    Blue no rocking, green rocking, red overturning; cells whose block would
+    slide (`Status.SLIDING`, a map with a `friction`) are orange triangles,
+    undecided cells (`Status.UNDECIDED`) grey plus signs, and cells whose
+    analysis did not converge black crosses. Returns the axes.
 
     Draws one map (cells of shape (n_slenderness, n_size)). A map with batch
     axes (a batch of bases or motions, a suite of records) is refused with a
@@ -81,9 +92,12 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     for code, (colour, label) in _COLOURS.items():
         sel = (bmap.outcome == code) & (bmap.status == 0)
         ax.scatter(lam[sel], r[sel], s=6, c=colour, label=label)
-    bad = bmap.status != 0
-    if np.any(bad):
-        ax.scatter(lam[bad], r[bad], s=12, c="k", marker="x", label="not converged")
+    for status, (colour, marker, label) in _STATUS_MARKERS.items():
+        sel = bmap.status == status
+        if status is None:
+            sel = ~np.isin(bmap.status, [0, Status.SLIDING, Status.UNDECIDED])
+        if np.any(sel):
+            ax.scatter(lam[sel], r[sel], s=12, c=colour, marker=marker, label=label)
     ax.set_xlabel("slenderness lambda = h/b")
     ax.set_ylabel("size r (m)")
     ax.set_title(title or f"{bmap.motion}\n{bmap.base}", fontsize=8)

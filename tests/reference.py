@@ -73,6 +73,7 @@ def simulate(
     breaks=None,
     restitution_factor=1.0,
     restitution=None,
+    friction_samples=0,
 ):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
     ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g,
@@ -83,6 +84,15 @@ def simulate(
     `restitution_factor` times the momentum model's e (Eq. 2.13); the base's
     velocity then follows from the horizontal momentum M u' + m h theta' of
     block and base, conserved through the impact.
+
+    With `friction_samples` > 0 it also returns `friction_needed`: the
+    largest |R_x| / R_y of the base's force R on the block (inf where
+    R_y <= 0), R = m (acceleration of the centre of mass, plus g upwards),
+    over the analysis while the block has not passed its corner's vertical
+    (s theta < alpha), read at every step's end and at `friction_samples`
+    points inside each step (dense output), and at each impact the ratio
+    |P_x| / P_y of the impulse: the change of the centre of mass's momentum
+    (an impact after which rocking ends, its first rebound's e theta'-).
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -148,6 +158,39 @@ def simulate(
 
     def abs_base_acc(t, x):
         return acc(t) if fixed else -isolator_force(x) / M
+
+    def centre(th, s):
+        """The centre of mass relative to the pivot (x = s b, y = 0), and its
+        derivatives in theta: the block turned by -theta about the pivot."""
+        x = -s * b * math.cos(th) + h * math.sin(th)
+        y = s * b * math.sin(th) + h * math.cos(th)
+        return x, y, y, -x  # X, Y, dX/dtheta, dY/dtheta
+
+    def force_ratio(t, x, s):
+        """|R_x| / R_y of the base's force on the block at (t, x)."""
+        if s == 0:
+            return abs(abs_base_acc(t, x)) / G
+        th, thd = x[0], x[1]
+        if s * th >= alpha:
+            return 0.0
+        rates = rhs(t, x, s)
+        thdd = rates[1]
+        a_base = acc(t) if fixed else rates[3] + acc(t)
+        X, Y, dX, dY = centre(th, s)
+        # d2X/dtheta2 = -X, d2Y/dtheta2 = -Y (a rotation).
+        r_x = m * (a_base + dX * thdd - X * thd**2)
+        r_y = m * (G + dY * thdd - Y * thd**2)
+        return math.inf if r_y <= 0 else abs(r_x) / r_y
+
+    def impulse_ratio(s, thd_minus, thd_plus, ud_minus, ud_plus):
+        """|P_x| / P_y at an impact from the corner s to -s."""
+        _, _, dx0, dy0 = centre(0.0, s)
+        _, _, dx1, dy1 = centre(0.0, -s)
+        p_x = m * ((ud_plus + dx1 * thd_plus) - (ud_minus + dx0 * thd_minus))
+        p_y = m * (dy1 * thd_plus - dy0 * thd_minus)
+        return abs(p_x) / p_y
+
+    needed = 0.0
 
     n = 2 if fixed else (4 if kind == "linear" else 5)
     x = np.zeros(n)
@@ -215,6 +258,13 @@ def simulate(
             k = np.searchsorted(breaks, t, side="right")
             while k < breaks.size and abs(acc(breaks[k])) < thr:
                 k += 1
+            if friction_samples:  # |x_g''| at rest: linear between kinks
+                crosses = k < breaks.size and breaks[k] <= t_end
+                end = breaks[k] if crosses else t_end
+                inside = breaks[(breaks > t) & (breaks < end)]
+                levels = [abs(acc(tt)) for tt in [t, *inside]]
+                levels.append(thr if crosses else abs(acc(t_end)))
+                needed = max(needed, max(levels) / G)
             if k == breaks.size or breaks[k] > t_end:
                 t = t_end
                 break
@@ -251,8 +301,16 @@ def simulate(
             events=events,
             args=(0 if phase == "T" else s,),
             max_step=max_step,
+            dense_output=bool(friction_samples),
         )
         evaluations += sol.nfev
+        if friction_samples:
+            sp = 0 if phase == "T" else s
+            fractions = np.arange(friction_samples) / friction_samples
+            times = (sol.t[:-1, None] + np.diff(sol.t)[:, None] * fractions).ravel()
+            times = np.append(times, sol.t[-1])
+            for tt, xx in zip(times, sol.sol(times).T):
+                needed = max(needed, force_ratio(tt, xx, sp))
         if not fixed and len(sol.y_events[2]):
             max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
         hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]
@@ -288,6 +346,14 @@ def simulate(
                 if not fixed:
                     x[3] = ud + m * h * thd / M
                 phase = "T"
+                if friction_samples:
+                    chatter = max(e, 0.0) * thd
+                    needed = max(
+                        needed,
+                        impulse_ratio(
+                            s, thd, chatter, ud, ud + m * h * (thd - chatter) / M
+                        ),
+                    )
                 s0 = uplift_now(t, x)
                 if s0:
                     phase, s = "R", s0
@@ -297,12 +363,17 @@ def simulate(
                     x[3] = ud + 6 * m * h * b * b * thd / den  # Eq. 2.14
                 elif not fixed:  # M u'+ + m h theta'+ = M u'- + m h theta'-
                     x[3] = ud + m * h * (thd - x[1]) / M
+                if friction_samples:
+                    needed = max(
+                        needed, impulse_ratio(s, thd, x[1], ud, 0.0 if fixed else x[3])
+                    )
                 phase, s = "R", -s
             log.append((thd, x[1], ud, 0.0 if fixed else x[3]))
     else:
         raise RuntimeError("reference: too many segments")
     outcome = 2 if overturned else (1 if rocked else 0)
-    return dict(
+    out = {} if not friction_samples else dict(friction_needed=needed)
+    return out | dict(
         outcome=outcome,
         max_rotation=max_th / alpha,
         max_base_displacement=max_u,

@@ -80,6 +80,22 @@ def test_cli_errors_are_one_line(argv, message, capsys):
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--block-friction", "0"],
+        ["map", "--block-friction", "nan"],
+        ["fragility", "--block-friction", "-1"],
+    ],
+)
+def test_cli_bad_block_friction_is_one_line(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code != 0
+    err = _one_error_line(capsys.readouterr().err)
+    assert "--block-friction: must be finite and > 0" in err
+
+
 def test_cli_bad_range_exits_nonzero(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["map", "--slenderness", "7:1:3"])
