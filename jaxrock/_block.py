@@ -199,13 +199,3 @@ class Block(AbstractChecked):
     def uplift_acceleration(self) -> Float[Array, "..."]:
         """g tan(alpha) = g b / h (m/s^2): the absolute base acceleration to uplift."""
         return GRAVITY / self.slenderness
-
-    @property
-    def rest_acceleration(self) -> Float[Array, "..."]:
-        """The absolute base acceleration (m/s^2) below which nothing happens
-        to a block at rest on its base: it neither uplifts (g tan(alpha)) nor,
-        given its `friction` mu, slides (mu g). The level of every shortcut
-        that skips a block at rest."""
-        if self.friction is None:
-            return self.uplift_acceleration
-        return jnp.minimum(self.uplift_acceleration, self.friction * GRAVITY)

@@ -133,6 +133,17 @@ def impact_friction(block: Block, base: AbstractIsolator):
     return (1.0 - mu) * block.slenderness * (1.0 - e) / (1.0 + e)
 
 
+def rest_level(block: Block, slid):
+    """|u'' + x_g''| (m/s^2) below which nothing happens to a block at rest on
+    its base: it uplifts at g tan(alpha) and, with a `friction` mu, until it
+    has slid (`slid`; None without a friction), slides at mu g. The level of
+    every shortcut that skips a block at rest."""
+    level = block.uplift_acceleration
+    if slid is None:
+        return level
+    return jnp.where(slid, level, jnp.minimum(level, block.friction * GRAVITY))
+
+
 def base_acceleration_bound(t, window, base_state, base, motion):
     """A bound of |u'' + x_g''| over [t, t + window] (m/s^2): on a fixed base
     the ground's (`AbstractSignal.acceleration_bound`); on an isolator

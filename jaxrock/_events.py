@@ -33,7 +33,13 @@ import jax.numpy as jnp
 import optimistix as optx
 from jaxtyping import Array, Float
 
-from ._dynamics import Args, Phase, absolute_base_acceleration, contact_forces
+from ._dynamics import (
+    Args,
+    Phase,
+    absolute_base_acceleration,
+    contact_forces,
+    rest_level,
+)
 
 
 def _by_phase(phase, translation, rising, falling):
@@ -75,7 +81,8 @@ def quiet(y, args: Args):
     and the base's energy too low to uplift it or to raise max |u|."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
     value = jnp.maximum(
-        u_bound - args.max_base_displacement, f_bound - args.block.rest_acceleration
+        u_bound - args.max_base_displacement,
+        f_bound - rest_level(args.block, args.slid),
     )
     # Armed per segment (not by t >= end_time inside one): a condition that jumped
     # within a segment would be "located" at the jump, with a meaningless

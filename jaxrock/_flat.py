@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._controller import KinkClip
-from ._dynamics import Args, Phase, vector_field
+from ._dynamics import Args, Phase, rest_level, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._isolators import AbstractIsolator
 from ._misc import computed_once, is_none, where_lanes
@@ -474,7 +474,7 @@ def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
     h = jnp.where(c.rocked, a.y0[2] - motion.translation_state(k), 0.0)
     u_bound, f_bound = base.free_vibration_bounds(h)
     margin = 1.0 - 1e-9  # rounding
-    acceleration = block.rest_acceleration * margin - f_bound
+    acceleration = rest_level(block, c.slid) * margin - f_bound
     displacement = jnp.where(c.rocked, c.max_u * margin - u_bound, jnp.inf)
     m = motion.translation_first(k, acceleration, displacement)
     t = motion.sample_time(m)
@@ -491,7 +491,8 @@ def _quiet_end_afresh(a: _Attempt, new, block, base, motion):
     uplift level, from the event where it comes to rest, else from the next
     step's start (as a block at rest looks ahead)."""
     resting = new.phase == Phase.TRANSLATION
-    return quiet_end(jnp.where(resting, new.t, a.next_t0), block, base, motion)
+    t = jnp.where(resting, new.t, a.next_t0)
+    return quiet_end(t, block, base, motion, new.slid)
 
 
 def _look_ahead(a: _Attempt, located, new):

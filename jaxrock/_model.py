@@ -29,6 +29,7 @@ from ._dynamics import (
     base_acceleration_bound,
     impact,
     impact_friction,
+    rest_level,
     restitution,
     restitution_valid,
     rests_at_impact,
@@ -142,7 +143,7 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
         dt=jnp.asarray(1e-3, dtype=zero.dtype),
         theta_ref=zero,
         t_limit=jnp.asarray(jnp.inf, dtype=zero.dtype),
-        quiet_end=quiet_end(t, block, base, motion),
+        quiet_end=quiet_end(t, block, base, motion, None),
         search_from=zero if rest_jumps(motion) else None,
         slid=None if block.friction is None else jnp.asarray(False),
     )
@@ -219,21 +220,22 @@ def with_start_conditions(c: Carry, block, base, motion) -> Carry:
 
 def quiet_level(c: Carry, block, base):
     """|x_g''| below which nothing happens: a block at rest on a fixed base
-    uplifts (or slides) only where |x_g''| reaches `Block.rest_acceleration`;
-    0 while it rocks; None on an isolated base (its state moves)."""
+    uplifts (or slides) only where |x_g''| reaches its `rest_level`; 0 while
+    it rocks; None on an isolated base (its state moves)."""
     if not fixed_base(base):
         return None
     resting = c.phase == Phase.TRANSLATION
-    return jnp.where(resting, block.rest_acceleration, 0.0)
+    return jnp.where(resting, rest_level(block, c.slid), 0.0)
 
 
-def quiet_end(t, block, base, motion):
+def quiet_end(t, block, base, motion, slid):
     """`Carry.quiet_end` from t: where |x_g''| may first reach the block's
-    `rest_acceleration` from t on (`RecordSignal.quiet_end`), where the scene
+    `rest_level` from t on (`RecordSignal.quiet_end`; `slid`: whether it has
+    slid, None without a friction), where the scene
     `carries_quiet_end`; else None."""
     if not carries_quiet_end(base, motion):
         return None
-    return motion.quiet_end(t, block.rest_acceleration)
+    return motion.quiet_end(t, rest_level(block, slid))
 
 
 # A redo ends at least this long (s) before the event it replaces.
