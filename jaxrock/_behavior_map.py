@@ -114,28 +114,31 @@ class BehaviorMap(eqx.Module):
         return self.coordinates or Coordinates.unlabeled(self.outcome.ndim - 2)
 
     def counts(self) -> dict[str, int]:
-        """The number of cells per outcome, of undecided and sliding cells and
-        of cells that did not converge.
+        """The number of cells per outcome, of undecided, sliding and flying
+        cells and of cells that did not converge.
 
         Returns:
             A dict: "no_rocking", "rocking" and "overturned" count the cells of
             each `Outcome`; "undecided" the cells whose fate was still open at
             the end of the window (`Status.UNDECIDED`), "sliding" those whose
             block would slide (`Status.SLIDING`, a map with a `friction`),
-            "not_converged" those with any other status but SUCCESS (each
-            counted under its outcome as well).
+            "free_flight" those whose ground fell faster than gravity
+            (`Status.FREE_FLIGHT`, a vertical motion), "not_converged" those
+            with any other status but SUCCESS (each counted under its
+            outcome as well).
 
         Examples:
             >>> import jaxrock as jr
             >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
             ...                      jr.near_fault_pulse("Northridge JFA/SN"))
             >>> bm.counts()
-            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'undecided': 0, 'sliding': 0, 'not_converged': 0}
+            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'undecided': 0, 'sliding': 0, 'free_flight': 0, 'not_converged': 0}
         """  # noqa: E501
         out = {o.name.lower(): int(np.sum(self.outcome == o)) for o in Outcome}
-        apart = (Status.SUCCESS, Status.UNDECIDED, Status.SLIDING)
+        apart = (Status.SUCCESS, Status.UNDECIDED, Status.SLIDING, Status.FREE_FLIGHT)
         out["undecided"] = int(np.sum(self.status == Status.UNDECIDED))
         out["sliding"] = int(np.sum(self.status == Status.SLIDING))
+        out["free_flight"] = int(np.sum(self.status == Status.FREE_FLIGHT))
         out["not_converged"] = int(np.sum(~np.isin(self.status, apart)))
         return out
 
@@ -165,6 +168,8 @@ class BehaviorMap(eqx.Module):
             text += f", {c['undecided']} undecided (fate open at the window's end)"
         if c["sliding"]:
             text += f", {c['sliding']} sliding (friction exceeded)"
+        if c["free_flight"]:
+            text += f", {c['free_flight']} in free flight (ground fell faster than g)"
         if c["not_converged"]:
             text += f", {c['not_converged']} NOT CONVERGED (see status)"
         return text + f" [{self.motion}; {self.base}]"

@@ -53,27 +53,46 @@ def _geometry(block, theta, s):
     return block.h * cos + s * block.b * sin, s * block.b * cos - block.h * sin
 
 
+def isolator_force(base: AbstractIsolator, state, gravity):
+    """The isolator's force per unit total mass at g_eff = `gravity`
+    (m/s^2): a `weight_borne` isolator's force, proportional to the normal
+    force M g, times g_eff / g (the paper's N = M g with g -> g_eff); any
+    other's as it is."""
+    f = base.force(state)
+    if base.weight_borne and not isinstance(gravity, float):
+        f = f * (gravity / GRAVITY)
+    return f
+
+
+def uplift_level(block: Block, gravity):
+    """g_eff tan(alpha) (m/s^2): the absolute base acceleration that uplifts
+    the block at g_eff = `gravity` (`Block.uplift_acceleration` at g)."""
+    return gravity / block.slenderness
+
+
 def _accelerations(t, y, args: Args):
-    """(theta'', u'' (None on a fixed base), x_g'') at (t, y) (rad/s^2, m/s^2)."""
+    """(theta'', u'' (None on a fixed base), x_g'', g_eff) at (t, y)
+    (rad/s^2, m/s^2)."""
     theta, theta_dot, base_state = y
     block, base = args.block, args.base
     rocking = args.phase != Phase.TRANSLATION
     s = jnp.where(rocking, args.sign, 1.0)
     c1, s1 = _geometry(block, theta, s)
     ag = args.motion.acceleration(t)
+    g = args.motion.gravity(t)
     j = 4.0 / 3.0 * block.size**2
     if fixed_base(base):
-        theta_ddot = -(c1 * ag + GRAVITY * s1) / j
-        return jnp.where(rocking, theta_ddot, 0.0), None, ag
-    f = base.force(base_state)
+        theta_ddot = -(c1 * ag + g * s1) / j
+        return jnp.where(rocking, theta_ddot, 0.0), None, ag, g
+    f = isolator_force(base, base_state, g)
     mu = base.block_mass_fraction
     det = j - mu * c1**2
     rhs_u = -ag - mu * s1 * theta_dot**2 - f
-    rhs_theta = -c1 * ag - GRAVITY * s1
+    rhs_theta = -c1 * ag - g * s1
     u_ddot_rocking = (j * rhs_u - mu * c1 * rhs_theta) / det
     theta_ddot = (rhs_theta - c1 * rhs_u) / det
     u_ddot = jnp.where(rocking, u_ddot_rocking, -ag - f)
-    return jnp.where(rocking, theta_ddot, 0.0), u_ddot, ag
+    return jnp.where(rocking, theta_ddot, 0.0), u_ddot, ag, g
 
 
 def vector_field(t, y, args: Args):
@@ -82,11 +101,13 @@ def vector_field(t, y, args: Args):
     Rocking:  u'' + mu c1 theta'' + mu s1 theta'^2 + f = -x_g''
               c1 u'' + (4/3) r^2 theta'' + g s1     = -c1 x_g''
     with mu = m / M and f = F / M; translation: u'' = -f - x_g'', theta'' = 0.
-    Fixed base: theta'' = -(3 / (4 r^2)) (c1 x_g'' + g s1).
+    Fixed base: theta'' = -(3 / (4 r^2)) (c1 x_g'' + g s1). Under vertical
+    ground motion g is g_eff(t) = g + a_v(t) (`AbstractAcceleration.gravity`),
+    in these and in a `weight_borne` isolator's force.
     """
     theta_dot, base_state = y[1], y[2]
     rocking = args.phase != Phase.TRANSLATION
-    theta_ddot, u_ddot, _ = _accelerations(t, y, args)
+    theta_ddot, u_ddot, _, _ = _accelerations(t, y, args)
     if u_ddot is None:
         u_ddot = jnp.zeros_like(theta_dot)  # (a fixed base has no base state)
     return (
@@ -104,16 +125,16 @@ def contact_forces(t, y, args: Args):
     (`_geometry`), so X' = c1 theta', Y' = s1 theta' and
     R_x = u'' + x_g'' + c1 theta'' + s1 theta'^2 and
     R_y = g + s1 theta'' - c1 theta'^2; in translation R_x = u'' + x_g'',
-    R_y = g."""
+    R_y = g (g_eff under vertical ground motion)."""
     theta, theta_dot = y[0], y[1]
     rocking = args.phase != Phase.TRANSLATION
     c1, s1 = _geometry(args.block, theta, jnp.where(rocking, args.sign, 1.0))
-    theta_ddot, u_ddot, ag = _accelerations(t, y, args)
+    theta_ddot, u_ddot, ag, g = _accelerations(t, y, args)
     a_base = ag if u_ddot is None else u_ddot + ag
     w2 = theta_dot**2
     return (
         a_base + c1 * theta_ddot + s1 * w2,
-        GRAVITY + s1 * theta_ddot - c1 * w2,
+        g + s1 * theta_ddot - c1 * w2,
     )
 
 
@@ -133,15 +154,16 @@ def impact_friction(block: Block, base: AbstractIsolator):
     return (1.0 - mu) * block.slenderness * (1.0 - e) / (1.0 + e)
 
 
-def rest_level(block: Block, slid):
+def rest_level(block: Block, slid, gravity=GRAVITY):
     """|u'' + x_g''| (m/s^2) below which nothing happens to a block at rest on
     its base: it uplifts at g tan(alpha) and, with a `friction` mu, until it
     has slid (`slid`; None without a friction), slides at mu g. The level of
-    every shortcut that skips a block at rest."""
-    level = block.uplift_acceleration
+    every shortcut that skips a block at rest. Under vertical ground motion
+    `gravity` is the least g_eff (`AbstractSignal.least_gravity`)."""
+    level = uplift_level(block, gravity)
     if slid is None:
         return level
-    return jnp.where(slid, level, jnp.minimum(level, block.friction * GRAVITY))
+    return jnp.where(slid, level, jnp.minimum(level, block.friction * gravity))
 
 
 def base_acceleration_bound(t, window, base_state, base, motion):
@@ -160,7 +182,7 @@ def absolute_base_acceleration(t, base_state, base, motion):
     if fixed_base(base):
         a = motion.acceleration(t)
     else:
-        a = -base.force(base_state)
+        a = -isolator_force(base, base_state, motion.gravity(t))
     # Read by both uplift conditions and much of the transition.
     return computed_once(a)
 
@@ -229,7 +251,13 @@ def check_restitution(block: Block, base: AbstractIsolator) -> None:
 
 
 def rests_at_impact(
-    block: Block, e, theta_dot_squared, rest_tolerance, lift_bound=None
+    block: Block,
+    e,
+    theta_dot_squared,
+    rest_tolerance,
+    lift_bound=None,
+    gravity=GRAVITY,
+    gravity_bound=None,
 ):
     """The rest rule, against Zeno chattering: rocking ends at an impact when
     e <= 0, or when
@@ -251,18 +279,35 @@ def rests_at_impact(
 
     `theta_dot_squared` is theta'-^2; `lift_bound(window)` (m/s^2) bounds the
     base's absolute acceleration over [t, t + window] (window 0: at t); None
-    (a base at rest after the excitation) means no base acceleration."""
-    rise = e * e * theta_dot_squared / (2.0 * block.p**2 * block.b / block.size)
+    (a base at rest after the excitation) means no base acceleration.
+
+    Under vertical ground motion the rise is that at g_eff = `gravity` (at
+    the impact, p^2 = 3 g_eff / (4 r)), and the uplift level is that at the
+    least g_eff over twice the window S found at g_eff: with
+    `gravity_bound(w)`, a lower bound of g_eff over [t, t + w] (None: no
+    vertical motion), the rule asks that S at that level be no longer."""
+    p = jnp.sqrt(3.0 * gravity / (4.0 * block.size))  # `Block.p` at g_eff
+    rise = e * e * theta_dot_squared / (2.0 * p**2 * block.b / block.size)
     rest = (e <= 0) | (rise < rest_tolerance * block.alpha)
     if lift_bound is None:
         return rest
-    threshold = block.uplift_acceleration
-    level = 0.5 * (threshold + lift_bound(0.0))
-    # d(level) = p^2 cos(alpha) (threshold - level) / g, p^2 / g = 3 / (4 r).
-    decel = 0.75 * block.h / block.size**2 * (threshold - level)
-    window = 2.0 * e * jnp.sqrt(theta_dot_squared) / (decel * (1.0 - e))
-    window = jnp.where(rest & (decel > 0) & (e < 1), window, 0.0)
-    return (e <= 0) | (rest & (decel > 0) & (lift_bound(window) < level))
+
+    def window(threshold):
+        """(level, the deceleration, S) at the uplift level `threshold`."""
+        level = 0.5 * (threshold + lift_bound(0.0))
+        # d(level) = p^2 cos(alpha) (threshold - level) / g, p^2 / g = 3 / (4 r).
+        decel = 0.75 * block.h / block.size**2 * (threshold - level)
+        s = 2.0 * e * jnp.sqrt(theta_dot_squared) / (decel * (1.0 - e))
+        return level, decel, jnp.where(rest & (decel > 0) & (e < 1), s, 0.0)
+
+    if gravity_bound is None:
+        level, decel, s = window(block.uplift_acceleration)
+        return (e <= 0) | (rest & (decel > 0) & (lift_bound(s) < level))
+    _, decel_now, s_now = window(uplift_level(block, gravity))
+    horizon = 2.0 * s_now
+    level, decel, s = window(uplift_level(block, gravity_bound(horizon)))
+    ends = rest & (decel_now > 0) & (decel > 0) & (s <= horizon)
+    return (e <= 0) | (ends & (lift_bound(s) < level))
 
 
 def impact(block, base, theta_dot, base_state, rest):

@@ -19,6 +19,8 @@ energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
 "slide" (blocks with a `friction` only) fires where the friction needed to
 hold the block reaches what its interface gives (`condition_slide`).
+"flight" (under vertical ground motion only) fires where g + a_v(t) reaches
+0 (`condition_flight`).
 "guard" catches a phase begun on the wrong side of a near double root of theta'
 (see `condition_guard`). Diffrax lets the first condition in PyTree order win
 when several fire in one step; `transition` then redoes the segment up to
@@ -39,6 +41,7 @@ from ._dynamics import (
     absolute_base_acceleration,
     contact_forces,
     rest_level,
+    uplift_level,
 )
 
 
@@ -57,7 +60,7 @@ def condition_angle(t, y, args: Args, **kwargs):
     s_theta = args.sign * theta
     return _by_phase(
         args.phase,
-        a_abs + args.block.uplift_acceleration,
+        a_abs + uplift_level(args.block, args.motion.gravity(t)),
         0.5 * jnp.pi - s_theta,
         s_theta,
     )
@@ -70,7 +73,7 @@ def condition_rate(t, y, args: Args, **kwargs):
     s_theta_dot = args.sign * theta_dot
     return _by_phase(
         args.phase,
-        args.block.uplift_acceleration - a_abs,
+        uplift_level(args.block, args.motion.gravity(t)) - a_abs,
         s_theta_dot,
         -s_theta_dot,
     )
@@ -136,6 +139,13 @@ def condition_slide(t, y, args: Args, **kwargs):
     r_x, r_y = contact_forces(t, y, args)
     armed = ~args.slid & (args.sign * y[0] < args.block.alpha)
     return jnp.where(armed, args.block.friction * r_y - jnp.abs(r_x), 1.0)
+
+
+def condition_flight(t, y, args: Args, **kwargs):
+    """g_eff(t) = g + a_v(t) (m/s^2): <= 0 where the ground falls faster than
+    gravity, and the block would leave its base (under vertical motion)."""
+    del kwargs
+    return jnp.broadcast_to(args.motion.gravity(t), jnp.shape(y[0]))
 
 
 def newton_in_bracket(t, value, slope, lower, upper, inclusive: bool):

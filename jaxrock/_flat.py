@@ -26,7 +26,7 @@ from ._controller import KinkClip
 from ._dynamics import Args, Phase, rest_level, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._isolators import AbstractIsolator
-from ._misc import computed_once, is_none, where_lanes
+from ._misc import GRAVITY, computed_once, is_none, where_lanes
 from ._model import (
     Conditions,
     event_conditions,
@@ -41,8 +41,8 @@ from ._model import (
     transition,
     with_start_conditions,
 )
-from ._scene import fixed_base, rest_jumps, rocking_reads_all
-from ._signal import AbstractAcceleration, accelerations_at
+from ._scene import fixed_base, has_vertical, rest_jumps, rocking_reads_all
+from ._signal import AbstractAcceleration, accelerations_at, gravities_at
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -65,27 +65,35 @@ def _stage_times(tableau, t0, t1):
 
 
 class _Known(AbstractAcceleration):
-    """The ground's acceleration at one time, already computed: what a stage of
-    `_erk_step` or a condition at a step's end reads of the motion (read at
-    all of a step's times together in `_attempt`: `step_accelerations`)."""
+    """The ground's acceleration (and g_eff) at one time, already computed:
+    what a stage of `_erk_step` or a condition at a step's end reads of the
+    motion (read at all of a step's times together in `_attempt`:
+    `step_accelerations`, `gravities_at`)."""
 
     value: jax.Array
+    known_gravity: jax.Array | float = GRAVITY
 
     def acceleration(self, t):
         return jnp.broadcast_to(self.value, jnp.shape(t))
 
+    def gravity(self, t):
+        if isinstance(self.known_gravity, float):
+            return self.known_gravity
+        return jnp.broadcast_to(self.known_gravity, jnp.shape(t))
 
-def _with_ground(args: Args, value) -> Args:
-    return eqx.tree_at(lambda a: a.motion, args, _Known(value))
+
+def _with_ground(args: Args, value, gravity=GRAVITY) -> Args:
+    return eqx.tree_at(lambda a: a.motion, args, _Known(value, gravity))
 
 
-def _erk_step(tableau, t0, t1, y0, args, ground=None):
+def _erk_step(tableau, t0, t1, y0, args, ground=None, gravity=None):
     """One step of an explicit Runge-Kutta method, its stages unrolled.
 
     The same arithmetic as Diffrax's `AbstractERK.step` (which runs the stages in
     a while loop: on the CPU the loop's overhead cost more than the stages of
     this small system). `ground` holds x_g'' at the stage times
-    (`_stage_times`; None: read from `args.motion`). Returns y1, the error
+    (`_stage_times`; None: read from `args.motion`) and `gravity` g_eff
+    there (None: g). Returns y1, the error
     estimate and Diffrax's dense information (y0, y1 and the stage increments
     k_i = h f(t_i, y_i)). The base states past the isolator's `n_integrated`
     (zero rates) are carried through the stages as they are: the same
@@ -95,11 +103,13 @@ def _erk_step(tableau, t0, t1, y0, args, ground=None):
     times = _stage_times(tableau, t0, t1)
     if ground is None:
         ground = [args.motion.acceleration(t) for t in times]
+    if gravity is None:
+        gravity = [GRAVITY] * len(times)
     n = args.base.n_integrated
     held = n is not None and n < args.base.n_states
 
     def increment(i, y):
-        f = vector_field(times[i], y, _with_ground(args, ground[i]))
+        f = vector_field(times[i], y, _with_ground(args, ground[i], gravity[i]))
         k = jax.tree_util.tree_map(lambda v: h * v, f)
         return (k[0], k[1], k[2][:n]) if held else k
 
@@ -174,7 +184,7 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     t0, y0 = c.t, c.y
     dt = jnp.minimum(c.dt, dtmax)
     # (A block at rest: where |x_g''| may reach its uplift level, carried.)
-    level = quiet_level(c, block, base)
+    level = quiet_level(c, block, base, motion)
     kinks = motion.limits_steps(level is not None)
     kink = motion.next_kink(t0, level, c.quiet_end) if kinks else None
     t1 = t0 + dt if kink is None else motion.step_end(t0, dt, kink)
@@ -189,8 +199,14 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
             ground = motion.step_accelerations(times)
         else:
             ground = accelerations_at(motion, times)
-        args0, args1 = _with_ground(args, ground[0]), _with_ground(args, ground[-1])
-        y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args, ground)
+        gravity = [GRAVITY] * len(times)
+        if has_vertical(motion):
+            gravity = gravities_at(motion, times)
+        args0 = _with_ground(args, ground[0], gravity[0])
+        args1 = _with_ground(args, ground[-1], gravity[-1])
+        y1, y_error, dense = _erk_step(
+            solver.tableau, t0, t1, y0, args, ground, gravity
+        )
         y1, y_error = computed_once((y1, y_error))  # read by most of the step
         solver_result = diffrax.RESULTS.successful
     else:
@@ -349,7 +365,9 @@ def _locate(a: _Attempt, opts, unfired=()):
     or a linear isolator, and made the first map about 20% slower to start
     (compiling).
     """
-    conditions = jax.tree_util.tree_leaves(event_conditions(a.args.block, a.args.base))
+    conditions = jax.tree_util.tree_leaves(
+        event_conditions(a.args.block, a.args.base, a.args.motion)
+    )
     evaluate = _dense_in_s(opts.solver, a)
     h = a.t1 - a.t0
 
@@ -474,7 +492,7 @@ def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
     h = jnp.where(c.rocked, a.y0[2] - motion.translation_state(k), 0.0)
     u_bound, f_bound = base.free_vibration_bounds(h)
     margin = 1.0 - 1e-9  # rounding
-    acceleration = rest_level(block, c.slid) * margin - f_bound
+    acceleration = rest_level(block, c.slid, motion.least_gravity) * margin - f_bound
     displacement = jnp.where(c.rocked, c.max_u * margin - u_bound, jnp.inf)
     m = motion.translation_first(k, acceleration, displacement)
     t = motion.sample_time(m)
@@ -586,7 +604,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
-    if rocking_reads_all(sub.args.block):
+    if rocking_reads_all(sub.args.block, motion):
         return locate(sub, motion, motion_axes)
     if fixed_base(sub.args.base):
         return jax.lax.cond(
@@ -595,7 +613,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
             lambda: locate(sub, _Still(), None),
         )
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
-    quiet = event_conditions(sub.args.block, sub.args.base)._fields.index("quiet")
+    quiet = Conditions._fields.index("quiet")
     return jax.lax.cond(
         translating,
         lambda: locate(sub, motion, motion_axes),

@@ -54,6 +54,12 @@ class AbstractGroundMotion(AbstractChecked):
         """A bound of |x_g''| over [t0, t1] (m/s^2; t1 >= t0), tight when the
         interval is short, inf when none is cheap (the rest rule reads it)."""
 
+    def acceleration_lower_bound(self, t0, t1) -> Float[Array, ""]:
+        """A lower bound of x_g'' itself over [t0, t1] (m/s^2): of a vertical
+        motion, it bounds g_eff from below (the rest rule reads it). By
+        default -`acceleration_bound`."""
+        return -self.acceleration_bound(t0, t1)
+
     @property
     def start_time(self) -> Float[Array, ""]:
         """When the excitation starts (s)."""
@@ -80,6 +86,33 @@ class AbstractGroundMotion(AbstractChecked):
     def max_step(self) -> Float[Array, ""] | None:
         """Largest integration step (s), so that no uplift hides inside a step."""
         return None
+
+    @property
+    def peak_acceleration_bound(self) -> Float[Array, "..."]:
+        """A bound of |x_g''| over all times (m/s^2; inf when none is known):
+        read of a vertical motion, whose peak bounds how far it lowers g."""
+        return self.acceleration_bound(self.start_time, self.end_time)
+
+    def with_vertical(self, vertical: "AbstractGroundMotion") -> "AbstractGroundMotion":
+        """This horizontal motion with the ground's vertical acceleration
+        `vertical` (any motion, positive upward, m/s^2): the block then feels
+        g + a_v(t) instead of g (docs/model.md, "Vertical ground motion").
+
+        Two closed forms stay closed forms; with a record on either side the
+        result is a `Record` whose samples carry both, a closed form sampled
+        at the record's `dt` (linear between samples, like the record).
+        Records must share one `dt`; the shorter is padded with zeros.
+
+        Examples:
+            >>> import jaxrock as jr
+            >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+            >>> shaken = pulse.with_vertical(jr.SinePulse(3.0, 2.0))
+            >>> float(shaken.end_time) == float(pulse.end_time)
+            True
+        """
+        from ._vertical import with_vertical
+
+        return with_vertical(self, vertical)
 
 
 class AbstractPulse(AbstractGroundMotion):
@@ -199,12 +232,29 @@ class MPPulse(AbstractPulse):
         )
         return jnp.where(jnp.abs(t - self.t0) <= self.half_duration, a, 0.0)
 
-    def acceleration_bound(self, t0, t1):
+    @property
+    def peak_acceleration_bound(self):
+        # |sin cos + gamma sin (1 + cos)| <= 1 + 2 gamma.
+        return (
+            jnp.abs(self.amplitude)
+            * jnp.pi
+            * self.frequency
+            / self.gamma
+            * (1.0 + 2.0 * self.gamma)
+        )
+
+    @property
+    def _jerk(self):
         # The jerk is at most |A| pi f_p / gamma * 2 pi f_p (1/gamma + 2 + 2 gamma).
         w = 2.0 * jnp.pi * self.frequency
         jerk = jnp.abs(self.amplitude) * 0.5 * w * w / self.gamma
-        jerk = jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
-        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
+        return jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
+
+    def acceleration_bound(self, t0, t1):
+        return jnp.abs(self.acceleration(t0)) + self._jerk * (t1 - t0)
+
+    def acceleration_lower_bound(self, t0, t1):
+        return self.acceleration(t0) - self._jerk * (t1 - t0)
 
     @property
     def acceleration_curvature(self):
@@ -288,9 +338,17 @@ class SinePulse(AbstractPulse):
         a = self.amplitude * jnp.sin(2.0 * jnp.pi * self.frequency * t)
         return jnp.where((t >= 0) & (t <= self.end_time), a, 0.0)
 
+    @property
+    def peak_acceleration_bound(self):
+        return jnp.abs(self.amplitude)
+
     def acceleration_bound(self, t0, t1):
         jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
         return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
+
+    def acceleration_lower_bound(self, t0, t1):
+        jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
+        return self.acceleration(t0) - jerk * (t1 - t0)
 
     @property
     def acceleration_curvature(self):

@@ -60,6 +60,10 @@ class AbstractIsolator(AbstractChecked):
     free_rocking_closed_form: ClassVar[bool] = False
     # The base state holds a hysteretic variable z (`hysteretic`).
     hysteretic_state: ClassVar[bool] = False
+    # The force is proportional to the normal force M g (a pendulum's or a
+    # rolling isolator's restoring force and friction), and follows g_eff
+    # under vertical ground motion; a rubber or lead bearing's does not.
+    weight_borne: ClassVar[bool] = False
 
     @abc.abstractmethod
     def initial_state(self) -> Float[Array, " n"] | None:
@@ -433,6 +437,8 @@ class AbstractFrictionPendulum(AbstractBoucWenIsolator):
         (True, 2.0)
     """
 
+    weight_borne: ClassVar[bool] = True
+
     friction: Float[Array, "..."] = parameter("friction", "1")
     radius: Float[Array, "..."] = parameter("radius", "m")
     mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
@@ -612,6 +618,8 @@ class SphericalRollingIsolator(AbstractClosedFormBoucWen):
         'spherical rolling isolator (R = 1 m, mu_r = 0.005, mass ratio 1)'
     """
 
+    weight_borne: ClassVar[bool] = True
+
     radius: Float[Array, "..."] = parameter("radius", "m")
     rolling_resistance: Float[Array, "..."] = parameter("rolling_resistance", "1")
     mass_ratio: Float[Array, "..."] = parameter("mass_ratio", "1")
@@ -682,6 +690,8 @@ class ConicalRollingIsolator(AbstractClosedFormBoucWen):
         >>> round(float(base.restoring_force(0.1)), 4)  # 10 cm out: ~ g s (m/s^2)
         0.4905
     """
+
+    weight_borne: ClassVar[bool] = True
 
     slope: Float[Array, "..."] = parameter("slope", "1")
     rolling_resistance: Float[Array, "..."] = parameter("rolling_resistance", "1")

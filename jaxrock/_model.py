@@ -33,10 +33,12 @@ from ._dynamics import (
     restitution,
     restitution_valid,
     rests_at_impact,
+    uplift_level,
 )
 from ._events import (
     condition_angle,
     condition_base,
+    condition_flight,
     condition_guard,
     condition_quiet,
     condition_rate,
@@ -47,7 +49,13 @@ from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
-from ._scene import carries_conditions, carries_quiet_end, fixed_base, rest_jumps
+from ._scene import (
+    carries_conditions,
+    carries_quiet_end,
+    fixed_base,
+    has_vertical,
+    rest_jumps,
+)
 from ._trig import sincos
 
 
@@ -106,7 +114,7 @@ def _uplift_now(t, y, phase, block, base, motion):
     Returns (uplift, sign). Applies at t = 0 and when rocking ends at an impact.
     """
     a_abs = absolute_base_acceleration(t, y[2], base, motion)
-    threshold = block.uplift_acceleration
+    threshold = uplift_level(block, motion.gravity(t))
     uplift = (phase == Phase.TRANSLATION) & (jnp.abs(a_abs) >= threshold)
     return uplift, jnp.where(a_abs < 0, 1.0, -1.0)
 
@@ -150,6 +158,13 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
     if c.slid is not None:
         slid = slides_now(c, block, base, motion) & valid
         c = eqx.tree_at(lambda c: c.slid, c, slid)
+    if has_vertical(motion):  # the ground falls faster than g at once
+        flight = valid & (motion.gravity(t) <= 0)
+        c = eqx.tree_at(
+            lambda c: (c.done, c.status),
+            c,
+            (c.done | flight, jnp.where(flight, Status.FREE_FLIGHT, c.status)),
+        )
     return with_start_conditions(c, block, base, motion)
 
 
@@ -186,13 +201,13 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     the segment, the largest step (None: no limit) and the step-size controller."""
     active = is_active(c, opts)
     args = segment_args(c, block, base, motion)
-    conditions = event_conditions(block, base)
+    conditions = event_conditions(block, base, motion)
     shaking, t_stop = segment_end(c, motion, duration)
     t_stop = jnp.minimum(t_stop, c.t_limit)
     max_step = motion.max_step
     dtmax = None if max_step is None else jnp.where(shaking, max_step, jnp.inf)
     controller = StepSizeController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
-    quiet_below = quiet_level(c, block, base)
+    quiet_below = quiet_level(c, block, base, motion)
     if motion.limits_steps(quiet_below is not None):
         controller = KinkClip(controller, motion, quiet_below)
     return active, args, conditions, t_stop, dtmax, controller
@@ -213,19 +228,19 @@ def with_start_conditions(c: Carry, block, base, motion) -> Carry:
     if not carries_conditions(base):
         return c
     args = segment_args(c, block, base, motion)
-    conditions = jax.tree_util.tree_leaves(event_conditions(block, base))
+    conditions = jax.tree_util.tree_leaves(event_conditions(block, base, motion))
     values = tuple(cond(c.t, c.y, args) for cond in conditions)
     return eqx.tree_at(lambda c: c.start_conditions, c, values, is_leaf=is_none)
 
 
-def quiet_level(c: Carry, block, base):
+def quiet_level(c: Carry, block, base, motion):
     """|x_g''| below which nothing happens: a block at rest on a fixed base
     uplifts (or slides) only where |x_g''| reaches its `rest_level`; 0 while
     it rocks; None on an isolated base (its state moves)."""
     if not fixed_base(base):
         return None
     resting = c.phase == Phase.TRANSLATION
-    return jnp.where(resting, rest_level(block, c.slid), 0.0)
+    return jnp.where(resting, rest_level(block, c.slid, motion.least_gravity), 0.0)
 
 
 def quiet_end(t, block, base, motion, slid):
@@ -235,7 +250,7 @@ def quiet_end(t, block, base, motion, slid):
     `carries_quiet_end`; else None."""
     if not carries_quiet_end(base, motion):
         return None
-    return motion.quiet_end(t, rest_level(block, slid))
+    return motion.quiet_end(t, rest_level(block, slid, motion.least_gravity))
 
 
 # A redo ends at least this long (s) before the event it replaces.
@@ -274,17 +289,32 @@ class Conditions(NamedTuple):
     base_peak: Callable | None = None  # a new peak of |u| (isolated bases)
     quiet: Callable | None = None  # nothing can happen any more (isolated bases)
     slide: Callable | None = None  # friction cannot hold the block (a `friction`)
+    flight: Callable | None = None  # g_eff reaches 0 (vertical ground motion)
 
 
-def event_conditions(block, base) -> Conditions:
-    """The conditions of a segment of `block` on `base` (a fixed base has no
-    base state, a block without a `friction` no check of sliding)."""
+def event_conditions(block, base, motion) -> Conditions:
+    """The conditions of a segment of `block` on `base` under `motion` (a
+    fixed base has no base state, a block without a `friction` no check of
+    sliding, a motion without a vertical part no free flight)."""
     slide = None if block.friction is None else condition_slide
+    flight = condition_flight if has_vertical(motion) else None
     if fixed_base(base):
-        return Conditions(condition_angle, condition_rate, condition_guard, slide=slide)
+        return Conditions(
+            condition_angle,
+            condition_rate,
+            condition_guard,
+            slide=slide,
+            flight=flight,
+        )
     peak = base.peak_condition() or condition_base
     return Conditions(
-        condition_angle, condition_rate, condition_guard, peak, condition_quiet, slide
+        condition_angle,
+        condition_rate,
+        condition_guard,
+        peak,
+        condition_quiet,
+        slide,
+        flight,
     )
 
 
@@ -340,6 +370,7 @@ class _Events(NamedTuple):
     base_peak: Array  # "base_peak" (isolated bases)
     quiet: Array  # "quiet" (isolated bases)
     slide: Array  # "slide" (blocks with a `friction`)
+    flight: Array  # "flight" (vertical ground motion)
     towards_plus: Array  # an uplift is about the corner at x = +b
 
 
@@ -366,6 +397,7 @@ EVENT_TABLE = (
     _Rule("settled", Phase.TRANSLATION, EventKind.REST),
     _Rule("base_peak", None, EventKind.BASE_PEAK),
     _Rule("slide", None, EventKind.SLIDE),
+    _Rule("flight", None, EventKind.FLIGHT),  # (the analysis ends)
 )
 
 
@@ -399,6 +431,7 @@ def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
         base_peak=hit(mask.base_peak),
         quiet=hit(mask.quiet),
         slide=hit(mask.slide),
+        flight=hit(mask.flight),
         towards_plus=angle,
     )
 
@@ -414,6 +447,8 @@ def _apply_jumps(ev: _Events, t, y, block, base, motion, opts):
         theta_dot**2,
         opts.rest_tolerance,
         lambda window: base_acceleration_bound(t, window, base_state, base, motion),
+        motion.gravity(t),
+        (lambda w: motion.gravity_bound(t, t + w)) if has_vertical(motion) else None,
     )
     post_theta_dot, post_base = impact(block, base, theta_dot, base_state, rest)
     theta_dot = jnp.where(ev.impact, post_theta_dot, theta_dot)
@@ -506,6 +541,12 @@ def _advance(
     # leaves the fate open unless the block can no longer overturn.
     open_fate = can_overturn(phase, sign, y, block, base) & ~still & ~ev.overturn
     undecided = over & opts.until_decided & open_fate
+    # Free flight where its condition fired, or where g_eff is <= 0 after the
+    # event (an uplift located where g_eff, and with it the uplift level,
+    # reaches 0: the condition then starts at <= 0 and never fires).
+    flight = ev.flight
+    if has_vertical(motion):
+        flight = flight | (motion.gravity(t) <= 0)
     new = Carry(
         t=t,
         y=y,
@@ -518,12 +559,18 @@ def _advance(
         rocked=c.rocked | started,
         overturned=c.overturned | ev.overturn,
         status=jnp.where(
-            undecided & (end.status == Status.SUCCESS), Status.UNDECIDED, end.status
+            flight,
+            Status.FREE_FLIGHT,
+            jnp.where(
+                undecided & (end.status == Status.SUCCESS),
+                Status.UNDECIDED,
+                end.status,
+            ),
         ),
         segments=c.segments + jnp.where(cut, 0, 1),
         steps=c.steps + steps,
         segment_steps=jnp.where(cut, end.segment_steps, 0),
-        done=ev.overturn | end.failed | over | still,
+        done=ev.overturn | flight | end.failed | over | still,
         theta_ref=jnp.where(cut, c.theta_ref, sign * theta),
         dt=jnp.where(steps > 0, (t - c.t) / jnp.maximum(steps, 1), c.dt),
         kind=_event_kind(ev, rest, end.failed, still),
@@ -588,7 +635,7 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     redo = active & end.event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)
     redo = redo & (end.t - 2.0 * REDO_MARGIN > c.t)
     # The solver's mask holds the conditions present, in order: named again.
-    conditions = jax.tree_util.tree_structure(event_conditions(block, base))
+    conditions = jax.tree_util.tree_structure(event_conditions(block, base, motion))
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
     ev = _decode(c, mask, end.event, end.y[0])
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)

@@ -56,6 +56,11 @@ class Record(AbstractGroundMotion):
     the leading axes of `acceleration`; `dt` and `length` then have the
     batch's shape.
 
+    `vertical` (keyword, m/s^2, positive upward) holds the ground's vertical
+    acceleration at the same samples (`with_vertical` pairs two records, or
+    a record and a closed form); scaled with the record, it lowers or raises
+    the gravity the block feels (docs/model.md, "Vertical ground motion").
+
     Labels for titles and tables, static (they never enter a computation):
     `name` (event, station and component; "" is none), `azimuth` (the component's
     direction, degrees clockwise from north; None if unknown) and `rsn` (the
@@ -79,6 +84,11 @@ class Record(AbstractGroundMotion):
     name: str | tuple | None = eqx.field(static=True)
     azimuth: float | tuple | None = eqx.field(static=True)
     rsn: int | tuple | None = eqx.field(static=True)
+    # The vertical acceleration at the samples before `factor` (m/s^2, upward),
+    # of the shape of `unscaled`; None: none.
+    vertical: Float[Array, "*records n"] | None = eqx.field(
+        converter=lambda x: None if x is None else real_number("vertical", x)
+    )
 
     def __init__(
         self,
@@ -90,8 +100,10 @@ class Record(AbstractGroundMotion):
         azimuth=None,
         rsn=None,
         factor=None,
+        vertical=None,
     ):
         self.unscaled = acceleration
+        self.vertical = vertical
         self.dt = dt
         self.factor = None if factor is None else real_number("factor", factor)
         n = np.shape(self.unscaled)[-1] if np.ndim(self.unscaled) else 0
@@ -113,6 +125,11 @@ class Record(AbstractGroundMotion):
             raise ValueError(
                 "`acceleration` must hold at least 2 samples (along its last axis), "
                 f"got shape {shape}"
+            )
+        if self.vertical is not None and np.shape(self.vertical) != shape:
+            raise ValueError(
+                f"`vertical` must have the shape of `acceleration`, {shape}, got "
+                f"{np.shape(self.vertical)}"
             )
         records = shape[:-1]
         if self.batch_shape[len(self.batch_shape) - len(records) :] != records:
@@ -142,6 +159,15 @@ class Record(AbstractGroundMotion):
         ]
         if self.factor is not None:
             out.append(greater_than_zero("factor", self.factor))
+        if self.vertical is not None:
+            out.append(
+                Constraint(
+                    "vertical",
+                    self.vertical,
+                    lambda v: v == v,
+                    "finite (no NaN or inf)",
+                )
+            )
         return out
 
     @property
@@ -150,6 +176,14 @@ class Record(AbstractGroundMotion):
         if self.factor is None:
             return self.unscaled
         return self.factor[..., None] * self.unscaled
+
+    @property
+    def vertical_samples(self) -> Float[Array, "*batch n"] | None:
+        """The vertical acceleration at the samples (m/s^2, upward), with
+        `batch_shape` leading axes; None without one."""
+        if self.vertical is None or self.factor is None:
+            return self.vertical
+        return self.factor[..., None] * self.vertical
 
     def _rebuilt(self, factor=None, **labels) -> "Record":
         """The record with `labels`, times `factor` if given (an array whose
@@ -165,6 +199,7 @@ class Record(AbstractGroundMotion):
             jnp.broadcast_to(self.dt, shape),
             length=jnp.broadcast_to(self.length, shape),
             factor=total,
+            vertical=self.vertical,
             **labels,
         )
 
@@ -184,14 +219,26 @@ class Record(AbstractGroundMotion):
         if any(r.batch_shape != () for r in records):
             raise ValueError("`records` must be single records, not suites")
         n = max(r.sample_count for r in records)
-        rows = [np.pad(np.asarray(r.samples), (0, n - r.sample_count)) for r in records]
+
+        def rows(samples):
+            return np.stack(
+                [np.pad(np.asarray(s), (0, n - np.size(s))) for s in samples]
+            )
+
+        vertical = None
+        if any(r.vertical is not None for r in records):  # zero where none
+            vertical = rows(
+                r.samples * 0.0 if r.vertical is None else r.vertical_samples
+                for r in records
+            )
         return cls(
-            np.stack(rows),
+            rows(r.samples for r in records),
             np.stack([np.asarray(r.dt) for r in records]),
             length=np.array([int(r.length) for r in records]),
             name=tuple(r.name for r in records),
             azimuth=tuple(r.azimuth for r in records),
             rsn=tuple(r.rsn for r in records),
+            vertical=vertical,
         )
 
     def scaled(self, factor) -> "Record":
@@ -270,10 +317,17 @@ class Record(AbstractGroundMotion):
         """Records by position in the suite (its motion axes flattened, C
         order): an int gives one record, an array of ints a suite."""
         n = self.sample_count
-        rows = self.unscaled.reshape(-1, n)
-        samples = rows[jnp.asarray(index) % rows.shape[0]]
-        if self.factor is not None:
-            samples = jnp.reshape(self.factor, -1)[index][..., None] * samples
+
+        def pick(unscaled):
+            if unscaled is None:
+                return None
+            rows = unscaled.reshape(-1, n)
+            samples = rows[jnp.asarray(index) % rows.shape[0]]
+            if self.factor is not None:
+                samples = jnp.reshape(self.factor, -1)[index][..., None] * samples
+            return samples
+
+        samples, vertical = pick(self.unscaled), pick(self.vertical)
         dt = jnp.reshape(self.dt, -1)[index]
         length = jnp.reshape(self.length, -1)[index]
         try:
@@ -288,7 +342,7 @@ class Record(AbstractGroundMotion):
                 picked[key] = values[int(chosen)]
             else:
                 picked[key] = tuple(values[int(j)] for j in chosen.reshape(-1))
-        return Record(samples, dt, length=length, **picked)
+        return Record(samples, dt, length=length, vertical=vertical, **picked)
 
     def names(self) -> tuple | None:
         names = self.labels(flat=True)["name"]
@@ -297,7 +351,13 @@ class Record(AbstractGroundMotion):
     def unlabeled(self) -> "Record":
         """The record without labels: what compiled code takes (labels are
         static, so two labels would compile twice)."""
-        return Record(self.unscaled, self.dt, length=self.length, factor=self.factor)
+        return Record(
+            self.unscaled,
+            self.dt,
+            length=self.length,
+            factor=self.factor,
+            vertical=self.vertical,
+        )
 
     # -- what the engines read ----------------------------------------------------
 
@@ -316,9 +376,10 @@ class Record(AbstractGroundMotion):
             count = int(np.prod(self.batch_shape))
             return f"suite of {count} records (dt = {describe_values(self.dt)} s)"
         label = f"{self.name}, " if self.name else ""
+        vertical = "" if self.vertical is None else ", with its vertical"
         return (
             f"record ({label}{int(self.length)} samples, "
-            f"dt = {describe_values(self.dt)} s)"
+            f"dt = {describe_values(self.dt)} s{vertical})"
         )
 
     def acceleration(self, t):

@@ -78,6 +78,10 @@ class Status(IntEnum):
             vertical, or at an impact): it would slide, which the model does
             not follow; the results are those of the model without sliding
             (6). A failure above takes precedence.
+        FREE_FLIGHT: under vertical ground motion, g + a_v(t) reached 0: the
+            ground fell faster than gravity and the block would leave its
+            base in free flight, which the model does not follow; the
+            analysis stops there, its results those up to then (7).
 
     Examples:
         >>> import jaxrock as jr
@@ -99,6 +103,8 @@ class Status(IntEnum):
     UNDECIDED = 5
     # The friction needed to hold the block exceeded its `friction`.
     SLIDING = 6
+    # The ground fell faster than gravity: the block would leave its base.
+    FREE_FLIGHT = 7
 
 
 class EventKind(IntEnum):
@@ -127,6 +133,8 @@ class EventKind(IntEnum):
             block nor raise max |u|: the analysis ends early.
         SLIDE: the friction needed to hold a block with a `friction` reaches
             its own (`Status.SLIDING`); the analysis goes on without sliding.
+        FLIGHT: g + a_v(t) reaches 0 under vertical ground motion
+            (`Status.FREE_FLIGHT`); the analysis ends.
 
     Examples:
         >>> import jaxrock as jr
@@ -145,6 +153,7 @@ class EventKind(IntEnum):
     FAILURE = 8
     QUIET = 9  # ground still and too little energy left to uplift or move further
     SLIDE = 10  # the friction needed to hold the block reaches its own
+    FLIGHT = 11  # g + a_v reaches 0: the block would leave its base
 
 
 # The defaults of every analysis (`simulate`, maps, design): integrator
@@ -453,6 +462,8 @@ class Response(eqx.Module):
         )
         if int(self.status) == Status.SLIDING:
             text += " [status SLIDING: the block would slide on its base]"
+        elif int(self.status) == Status.FREE_FLIGHT:
+            text += " [status FREE_FLIGHT: the block would leave its base]"
         elif int(self.status) != Status.SUCCESS:
             text += f" [status {Status(int(self.status)).name}: not converged]"
         return text

@@ -13,7 +13,11 @@ about the scene that choose a code path:
   form (`_free.py`), and a map finishes it without steps (unless the block's
   sliding is checked).
 - `rocking_reads_all`: the conditions of a rocking block read the ground and
-  the base's force (a block whose sliding is checked).
+  the base's force (a block whose sliding is checked, a vertical motion).
+- `has_vertical`: the ground moves vertically too; g_eff = g + a_v(t) then
+  enters the equations, the uplift level and a `weight_borne` isolator's
+  force, and every shortcut for a block at rest uses its level at the least
+  g_eff (`AbstractSignal.least_gravity`).
 - `carries_quiet_end`: under a record, a block at rest on a fixed base
   skips samples to its next possible uplift, found in the record's table of
   peaks and carried from step to step.
@@ -35,6 +39,7 @@ from ._block import Block
 from ._isolators import AbstractIsolator, FixedBase
 from ._record import Record
 from ._signal import AbstractSignal, ClosedFormSignal, RecordSignal
+from ._vertical import WithVertical
 
 
 def prepare(motion, base: AbstractIsolator | None = None) -> AbstractSignal:
@@ -65,11 +70,22 @@ def closed_form_tail(block: Block, base: AbstractIsolator) -> bool:
     return base.free_rocking_closed_form and block.friction is None
 
 
-def rocking_reads_all(block: Block) -> bool:
+def rocking_reads_all(block: Block, signal: AbstractSignal) -> bool:
     """The event conditions of a rocking block read the ground's acceleration
     and the base's force (static): a block with a `friction`, whose slide
-    condition reads both (`_events.condition_slide`)."""
-    return block.friction is not None
+    condition reads both (`_events.condition_slide`), or a vertical motion
+    (`_events.condition_flight`)."""
+    return block.friction is not None or has_vertical(signal)
+
+
+def has_vertical(signal: AbstractSignal) -> bool:
+    """The ground moves vertically too (static): a closed form `WithVertical`
+    or a record with `vertical` samples."""
+    if isinstance(signal, ClosedFormSignal):
+        return isinstance(signal.motion, WithVertical)
+    if isinstance(signal, RecordSignal):
+        return signal.record.vertical is not None
+    return False
 
 
 def carries_quiet_end(base: AbstractIsolator, signal: AbstractSignal) -> bool:

@@ -27,18 +27,27 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._ground import AbstractGroundMotion, AbstractPulse
-from ._misc import computed_once, range_maxima
+from ._misc import GRAVITY, computed_once, range_maxima
 from ._record import Record
 from ._translation import TranslationTables
+from ._vertical import WithVertical
 
 
 class AbstractAcceleration(eqx.Module):
     """What the vector field and the event conditions read of the ground:
-    x_g''(t) (m/s^2)."""
+    x_g''(t) and the gravity the block feels (m/s^2)."""
 
     @abc.abstractmethod
     def acceleration(self, t: Float[Array, ""]) -> Float[Array, ""]:
         """x_g''(t) (m/s^2)."""
+
+    def gravity(self, t: Float[Array, ""]):
+        """g_eff(t) = g + a_v(t) (m/s^2), a_v the ground's vertical
+        acceleration (upward). Without a vertical motion, g itself as the
+        Python float `GRAVITY`: the arithmetic of such a scene is the same
+        as if g were written in."""
+        del t
+        return GRAVITY
 
 
 class AbstractSignal(AbstractAcceleration):
@@ -62,6 +71,19 @@ class AbstractSignal(AbstractAcceleration):
     @abc.abstractmethod
     def valid(self) -> Bool[Array, ""]:
         """The motion's parameters in range (traceable)."""
+
+    @property
+    def least_gravity(self):
+        """A lower bound of g_eff over the motion (m/s^2): g - max |a_v|, or
+        the Python float `GRAVITY` without a vertical motion. Every level of
+        a shortcut for a block at rest is scaled by least_gravity / g."""
+        return GRAVITY
+
+    def gravity_bound(self, t0, t1):
+        """A lower bound of g_eff over [t0, t1] (m/s^2; -inf when none is
+        cheap): g - a bound of |a_v| (the rest rule reads it)."""
+        del t0, t1
+        return GRAVITY
 
     @abc.abstractmethod
     def acceleration_bound(self, t0, t1) -> Float[Array, ""]:
@@ -99,6 +121,11 @@ def accelerations_at(signal: AbstractAcceleration, times):
     return computed_once(jax.vmap(signal.acceleration)(jnp.stack(times)))
 
 
+def gravities_at(signal: AbstractAcceleration, times):
+    """g_eff (m/s^2) at any `times`, in one vectorized evaluation."""
+    return computed_once(jax.vmap(signal.gravity)(jnp.stack(times)))
+
+
 def _below_level_until(signal, t, quiet_below, curvature, start):
     """The end of the step from t of a closed-form motion (see `next_kink`):
     with a = x_g''(t), a' its rate and |(x_g'')''| <= `curvature` (m/s^4, a
@@ -124,8 +151,30 @@ class ClosedFormSignal(AbstractSignal):
 
     motion: AbstractGroundMotion
 
+    @property
+    def _horizontal(self) -> AbstractGroundMotion:
+        if isinstance(self.motion, WithVertical):
+            return self.motion.horizontal
+        return self.motion
+
     def acceleration(self, t):
         return self.motion.acceleration(t)
+
+    def gravity(self, t):
+        if not isinstance(self.motion, WithVertical):
+            return GRAVITY
+        return GRAVITY + self.motion.vertical_acceleration(t)
+
+    @property
+    def least_gravity(self):
+        if not isinstance(self.motion, WithVertical):
+            return GRAVITY
+        return GRAVITY - self.motion.vertical.peak_acceleration_bound
+
+    def gravity_bound(self, t0, t1):
+        if not isinstance(self.motion, WithVertical):
+            return GRAVITY
+        return GRAVITY + self.motion.vertical.acceleration_lower_bound(t0, t1)
 
     @property
     def end_time(self):
@@ -142,12 +191,12 @@ class ClosedFormSignal(AbstractSignal):
         return self.motion.acceleration_bound(t0, t1)
 
     def limits_steps(self, resting: bool) -> bool:
-        return resting and isinstance(self.motion, AbstractPulse)
+        return resting and isinstance(self._horizontal, AbstractPulse)
 
     def next_kink(self, t, quiet_below=None, quiet_end=None):
         del quiet_end
-        curvature = self.motion.acceleration_curvature
-        start = self.motion.start_time
+        curvature = self._horizontal.acceleration_curvature
+        start = self._horizontal.start_time
         return _below_level_until(self, t, quiet_below, curvature, start)
 
     def step_end(self, t0, dt, kink):
@@ -243,6 +292,7 @@ class RecordSignal(AbstractSignal):
                 s.record.dt,
                 s.record.length,
                 s.record.factor,
+                s.record.vertical,
                 s.peaks,
                 s.translation,
                 s.index,
@@ -253,6 +303,7 @@ class RecordSignal(AbstractSignal):
                 flat(r.dt),
                 flat(r.length),
                 flat(r.factor),
+                flat(r.vertical, 1),
                 flat(self.peaks, 2),
                 translation,
                 jnp.asarray(index),
@@ -285,6 +336,36 @@ class RecordSignal(AbstractSignal):
     def max_step(self):
         return None
 
+    def _vertical_view(self) -> "RecordSignal":
+        """The vertical samples read as a record's (the same dt, length,
+        factor and row), without tables."""
+        return eqx.tree_at(
+            lambda s: (s.record.unscaled, s.record.vertical, s.peaks, s.translation),
+            self,
+            (self.record.vertical, None, None, None),
+            is_leaf=lambda x: x is None,
+        )
+
+    def gravity(self, t):
+        if self.record.vertical is None:
+            return GRAVITY
+        return GRAVITY + self._vertical_view().acceleration(t)
+
+    def gravity_bound(self, t0, t1):
+        if self.record.vertical is None:
+            return GRAVITY
+        return GRAVITY - self._vertical_view()._extreme(t0, t1, jnp.negative)
+
+    @property
+    def least_gravity(self):
+        if self.record.vertical is None:
+            return GRAVITY
+        peak = jnp.max(jnp.abs(self._read(self.record.vertical)), axis=-1)
+        factor = self.record.factor
+        if factor is not None:
+            peak = peak * self._of_batch(factor)
+        return GRAVITY - peak
+
     def step_accelerations(self, times):
         """x_g'' at a step's times from two samples, not two at each time: a
         step of the flat loop ends at the next sample (`next_kink`), so x_g''
@@ -313,6 +394,11 @@ class RecordSignal(AbstractSignal):
         """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
         largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
         at most `_BOUND_SAMPLES` samples after t0 (inf for a longer interval)."""
+        return self._extreme(t0, t1, jnp.abs)
+
+    def _extreme(self, t0, t1, of):
+        """max of of(x_g'') over [t0, t1] (`acceleration_bound` with `of`
+        abs; with negative, minus the least x_g'')."""
         n = self.sample_count
         dt = self._dt
         width = min(_BOUND_SAMPLES, n)
@@ -321,10 +407,8 @@ class RecordSignal(AbstractSignal):
         index = start + jnp.arange(width)
         near = self._sample(index)
         inside = (index >= first) & (index * dt < t1) & (index < self._length)
-        ends = jnp.maximum(
-            jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
-        )
-        bound = jnp.maximum(ends, jnp.max(jnp.where(inside, jnp.abs(near), 0.0)))
+        ends = jnp.maximum(of(self.acceleration(t0)), of(self.acceleration(t1)))
+        bound = jnp.maximum(ends, jnp.max(jnp.where(inside, of(near), -jnp.inf)))
         covered = (t1 < (start + width) * dt) | (t0 > self.end_time)
         return jnp.where(covered, bound, jnp.inf)
 

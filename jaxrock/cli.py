@@ -409,6 +409,7 @@ def _add_map(sub) -> None:
         help="only the chosen base, not the fixed base beside it",
     )
     _add_block_interface_options(m)
+    _add_vertical_option(m)
     m.add_argument(
         "--chunk-size",
         type=_positive_int,
@@ -447,6 +448,7 @@ def _add_fragility(sub) -> None:
     _add_motion_options(f)
     _add_block_options(f)
     _add_block_interface_options(f)
+    _add_vertical_option(f)
     f.add_argument(
         "--scales",
         type=_range,
@@ -521,6 +523,18 @@ def _add_simulate(sub) -> None:
     _add_motion_options(s)
     _add_block_options(s)
     _add_block_interface_options(s)
+    _add_vertical_option(s)
+
+
+def _add_vertical_option(parser) -> None:
+    parser.add_argument(
+        "--vertical",
+        metavar="FILE",
+        help="a PEER NGA .AT2 file of the ground's vertical acceleration "
+        "(positive upward; a file whose component is DWN is turned upward), "
+        "paired with the pulse or the one --record (same dt; the shorter is "
+        "padded with zeros; --scale scales both)",
+    )
 
 
 def _add_block_interface_options(parser) -> None:
@@ -765,11 +779,11 @@ def _check_store(folder: str | None) -> None:
             return
 
 
-def _check_record(path: str) -> None:
+def _check_record(path: str, argument: str = "--record") -> None:
     if os.path.isdir(path):
-        raise ValueError(f"--record: {path} is a folder, not a file")
+        raise ValueError(f"{argument}: {path} is a folder, not a file")
     if not os.path.exists(path):
-        raise ValueError(f"--record: no such file: {path}")
+        raise ValueError(f"{argument}: no such file: {path}")
 
 
 def _check_suite(name: str, argument: str = "--suite", folder: bool = True) -> None:
@@ -873,18 +887,48 @@ def _inputs(a):
         name = os.path.basename(a.record[0])
         if len(records) > 1:
             name = f"{len(records)} records"
+    vertical = getattr(a, "vertical", None)
     if records is None:
-        return jr.near_fault_pulse(a.pulse, scale=a.scale), _base(a), a.pulse
+        pulse = jr.near_fault_pulse(a.pulse, scale=a.scale)
+        if not vertical:
+            return pulse, _base(a), a.pulse
+        # The pulse at its --scale, the vertical at the same.
+        shaken = pulse.with_vertical(_vertical(vertical, a.scale))
+        return shaken, _base(a), f"{a.pulse} with vertical"
+    if vertical and len(records) > 1:
+        raise ValueError(
+            "--vertical pairs one motion: give one --record (a suite's records "
+            "carry their verticals when paired one by one in Python)"
+        )
     motion = records[0] if len(records) == 1 else jr.Record.stack(records)
+    if vertical:
+        motion = motion.with_vertical(_vertical(vertical))
+        name += " with vertical"
     if a.scale != 1.0:
         motion = motion.scaled(a.scale)
     return motion, _base(a), name
+
+
+def _vertical(path, scale=1.0):
+    """The vertical record of --vertical, upward, times `scale`."""
+    import numpy as np
+
+    import jaxrock as jr
+
+    record = jr.io.read_at2(path)
+    component = str(record.name).rsplit(",", 1)[-1].strip().upper()
+    sign = -1.0 if component in ("DWN", "DOWN") else 1.0
+    if sign * scale == 1.0:
+        return record
+    return jr.Record(sign * scale * np.asarray(record.samples), record.dt)
 
 
 def _check_motion(a) -> None:
     """The files of --record and the name of --suite, before JAX is imported."""
     for path in a.record or ():
         _check_record(path)
+    if getattr(a, "vertical", None):
+        _check_record(a.vertical, "--vertical")
     if a.suite:
         _check_suite(a.suite)
 

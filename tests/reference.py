@@ -74,6 +74,7 @@ def simulate(
     restitution_factor=1.0,
     restitution=None,
     friction_samples=0,
+    vertical=None,
 ):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
     ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g,
@@ -94,6 +95,16 @@ def simulate(
     |P_x| / P_y of the impulse: the change of the centre of mass's momentum
     (an impact after which rocking ends, its first rebound's e theta'-).
 
+    `vertical(t)` is the ground's vertical acceleration a_v (m/s^2, upward):
+    the block then feels g_eff = g + a_v(t) in its equation of rotation (the
+    support's vertical acceleration acts as a change of gravity), in the
+    uplift level g_eff b / h, in a pendulum's or a cone's normal force (K and
+    Q times g_eff / g; the linear and bilinear isolators' are unchanged) and
+    in the rest rule (its rebound at g_eff, and the level of the base's
+    uplift at the least g_eff over twice the chatter's time at g_eff, on a
+    fine grid). Where g_eff reaches 0 the analysis stops with `flight` True
+    (the block would leave its base).
+
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
     u_dot-, u_dot+) and evaluations the vector field's (SciPy's nfev).
@@ -109,7 +120,12 @@ def simulate(
     J = m * size**2 + inertia
     p2 = 3 * G / (4 * size)
 
-    def isolator_force(x):
+    def gravity(t):
+        return G if vertical is None else G + vertical(t)
+
+    def isolator_force(x, t=None):
+        """The force at t (the normal force of a pendulum or cone at g_eff)."""
+        weight = 1.0 if t is None else gravity(t) / G
         u, ud = x[2], x[3]
         if kind == "linear":
             T, xi = base[1], base[2]
@@ -120,9 +136,10 @@ def simulate(
             return M * (2 * math.pi / T) ** 2 * u + q * M * G * x[4]
         if kind == "cone":  # height s sqrt(u^2 + d^2): force M g dh/du
             mu, (s, d) = base[1], base[2]
-            return M * G * s * u / math.sqrt(u * u + d * d) + mu * M * G * x[4]
+            force = M * G * s * u / math.sqrt(u * u + d * d) + mu * M * G * x[4]
+            return weight * force
         mu, R = base[1], base[2]
-        return M * G / R * u + mu * M * G * x[4]
+        return weight * (M * G / R * u + mu * M * G * x[4])
 
     def bouc_wen(x):
         Y, A, gam, bet, eta = base[4:]
@@ -132,16 +149,18 @@ def simulate(
         ) / Y
 
     def rhs(t, x, s):
-        ag = acc(t)
+        ag, g = acc(t), gravity(t)
         th, thd = x[0], x[1]
         if fixed:
             if s == 0:
                 return [0.0, 0.0]
             return [
                 thd,
-                -p2 * (math.sin(s * alpha - th) + ag / G * math.cos(s * alpha - th)),
+                -p2
+                / G
+                * (g * math.sin(s * alpha - th) + ag * math.cos(s * alpha - th)),
             ]
-        F = isolator_force(x)
+        F = isolator_force(x, t)
         if s == 0:
             udd = -F / M - ag
             out = [0.0, 0.0, x[3], udd]
@@ -149,7 +168,7 @@ def simulate(
             c1 = h * math.cos(th) + s * b * math.sin(th)
             s1 = s * b * math.cos(th) - h * math.sin(th)
             mass = np.array([[M, m * c1], [m * c1, J]])
-            force = np.array([-M * ag - m * s1 * thd**2 - F, -m * c1 * ag - m * G * s1])
+            force = np.array([-M * ag - m * s1 * thd**2 - F, -m * c1 * ag - m * g * s1])
             udd, thdd = np.linalg.solve(mass, force)
             out = [thd, thdd, x[3], udd]
         if kind in ("fps", "bilinear", "cone"):
@@ -157,7 +176,10 @@ def simulate(
         return out
 
     def abs_base_acc(t, x):
-        return acc(t) if fixed else -isolator_force(x) / M
+        return acc(t) if fixed else -isolator_force(x, t) / M
+
+    def thr_at(t):
+        return gravity(t) * b / h
 
     def centre(th, s):
         """The centre of mass relative to the pivot (x = s b, y = 0), and its
@@ -179,7 +201,7 @@ def simulate(
         X, Y, dX, dY = centre(th, s)
         # d2X/dtheta2 = -X, d2Y/dtheta2 = -Y (a rotation).
         r_x = m * (a_base + dX * thdd - X * thd**2)
-        r_y = m * (G + dY * thdd - Y * thd**2)
+        r_y = m * (gravity(t) + dY * thdd - Y * thd**2)
         return math.inf if r_y <= 0 else abs(r_x) / r_y
 
     def impulse_ratio(s, thd_minus, thd_plus, ud_minus, ud_plus):
@@ -196,7 +218,7 @@ def simulate(
     x = np.zeros(n)
     t = 0.0
     phase, s = "T", 1
-    rocked = overturned = False
+    rocked = overturned = flight = False
     uplift_time = math.nan
     max_th = max_u = 0.0
     impacts = 0
@@ -216,9 +238,9 @@ def simulate(
 
     def uplift_now(t, x):
         a = abs_base_acc(t, x)
-        if a <= -thr:
+        if a <= -thr_at(t):
             return 1
-        if a >= thr:
+        if a >= thr_at(t):
             return -1
         return 0
 
@@ -231,13 +253,26 @@ def simulate(
         must stay below `level` for S (a fixed base: x_g'' on a fine grid and
         at the kinks; an isolator: its acceleration now)."""
         a0 = abs(abs_base_acc(t, x))
-        level = 0.5 * (thr + a0)
-        decel = p2 * math.cos(alpha) * (thr - level) / G
-        if decel <= 0 or e >= 1:
+
+        def chatter(low):
+            level = 0.5 * (low + a0)
+            decel = p2 * math.cos(alpha) * (low - level) / G
+            if decel <= 0 or e >= 1:
+                return level, None
+            return level, 2 * e * abs(thd) / (decel * (1 - e))
+
+        level, window = chatter(thr)
+        if vertical is not None and window is not None:
+            horizon = 2 * window
+            grid = np.linspace(t, t + horizon, 65)
+            least = min(gravity(tt) for tt in grid)
+            level, window = chatter(least * b / h)
+            if window is not None and window > horizon:
+                return False
+        if window is None:
             return False
         if not fixed:
             return True
-        window = 2 * e * abs(thd) / (decel * (1 - e))
         times = np.linspace(t, t + window, 65)
         inside = breaks[(breaks > t) & (breaks < t + window)]
         times = np.concatenate([times, inside])
@@ -252,7 +287,7 @@ def simulate(
     for _ in range(10**6):
         if t >= t_end:
             break
-        if fixed and phase == "T" and breaks.size:
+        if fixed and phase == "T" and breaks.size and vertical is None:
             # At rest on a fixed base nothing moves until |x_g''| reaches thr;
             # x_g'' is linear between kinks: the crossing, from the samples.
             k = np.searchsorted(breaks, t, side="right")
@@ -276,8 +311,8 @@ def simulate(
             uplift_time = t if math.isnan(uplift_time) else uplift_time
             continue
         if phase == "T":
-            ev1 = lambda t, x, s: abs_base_acc(t, x) + thr  # noqa: E731
-            ev2 = lambda t, x, s: thr - abs_base_acc(t, x)  # noqa: E731
+            ev1 = lambda t, x, s: abs_base_acc(t, x) + thr_at(t)  # noqa: E731
+            ev2 = lambda t, x, s: thr_at(t) - abs_base_acc(t, x)  # noqa: E731
         elif phase == "R":
             ev1 = lambda t, x, s: math.pi / 2 - s * x[0]  # noqa: E731
             ev2 = lambda t, x, s: s * x[1]  # noqa: E731
@@ -291,6 +326,10 @@ def simulate(
             peak = lambda t, x, s: x[3]  # noqa: E731
             peak.terminal, peak.direction = False, 0
             events.append(peak)
+        if vertical is not None:
+            fall = lambda t, x, s: gravity(t)  # noqa: E731
+            fall.terminal, fall.direction = True, -1
+            events.append(fall)
         sol = solve_ivp(
             rhs,
             (t, _next_break(breaks, t, t_end)),
@@ -313,6 +352,11 @@ def simulate(
                 needed = max(needed, force_ratio(tt, xx, sp))
         if not fixed and len(sol.y_events[2]):
             max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
+        if vertical is not None and len(sol.t_events[-1]):
+            t, x = sol.t[-1], sol.y[:, -1].copy()
+            max_th = max(max_th, abs(x[0]))
+            flight = True
+            break
         hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]
         if hit[0] and hit[1]:
             hit[int(sol.t_events[0][0] > sol.t_events[1][0])] = False
@@ -340,7 +384,7 @@ def simulate(
             impacts += 1
             thd = x[1]
             ud = 0.0 if fixed else x[3]
-            rise = (e * thd) ** 2 / (2 * p2 * math.sin(alpha))
+            rise = (e * thd) ** 2 / (2 * p2 * gravity(t) / G * math.sin(alpha))
             if e <= 0 or (rise < rest_tolerance * alpha and chatter_ends(t, x, thd)):
                 x[0] = x[1] = 0.0
                 if not fixed:
@@ -374,6 +418,7 @@ def simulate(
     outcome = 2 if overturned else (1 if rocked else 0)
     out = {} if not friction_samples else dict(friction_needed=needed)
     return out | dict(
+        flight=flight,
         outcome=outcome,
         max_rotation=max_th / alpha,
         max_base_displacement=max_u,
