@@ -137,5 +137,6 @@ from ._spectrum import (  # noqa: E402
     linearized_overturning_amplitude as linearized_overturning_amplitude,
 )
 from ._spectrum import overturning_spectrum as overturning_spectrum
+from ._vertical import WithVertical as WithVertical
 
 __version__ = importlib.metadata.version("jaxrock")
