@@ -195,13 +195,16 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         # x_g'' at the stage times and at t1, read together (a method whose
         # stages leave [t0, t1] reads them as any times).
         times = _stage_times(solver.tableau, t0, t1) + [t1]
-        if all(0 <= c <= 1 for c in solver.tableau.c):
+        within = all(0 <= c <= 1 for c in solver.tableau.c)
+        if within:
             ground = motion.step_accelerations(times)
         else:
             ground = accelerations_at(motion, times)
         gravity = [GRAVITY] * len(times)
         if has_vertical(motion):
-            gravity = gravities_at(motion, times)
+            gravity = (
+                motion.step_gravities(times) if within else gravities_at(motion, times)
+            )
         args0 = _with_ground(args, ground[0], gravity[0])
         args1 = _with_ground(args, ground[-1], gravity[-1])
         y1, y_error, dense = _erk_step(
@@ -539,10 +542,19 @@ def _batch_size(lanes: int, base: AbstractIsolator) -> int:
 
 
 class _Still(AbstractAcceleration):
-    """No ground motion: what the root find of rocking lanes reads of it."""
+    """No horizontal ground motion: what the root find of rocking lanes
+    reads of it; g_eff that of `vertical` (the lanes' motion under vertical
+    ground motion, whose free flight the root find locates), else g."""
+
+    vertical: AbstractAcceleration | None = None
 
     def acceleration(self, t):
         return jnp.zeros_like(t)
+
+    def gravity(self, t):
+        if self.vertical is None:
+            return GRAVITY
+        return self.vertical.gravity(t)
 
 
 class _ForceFree(AbstractIsolator):
@@ -593,7 +605,8 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
       in closed form) enters only the uplift conditions, and "quiet" (the
       base's free-vibration bounds, armed in translation only) too: a batch in
       which every lane rocks evaluates neither;
-    - but a block's slide condition (`rocking_reads_all`) reads both.
+    - but a block's slide condition (`rocking_reads_all`) reads both, and
+      the free flight of a vertical motion reads g_eff (`_Still` keeps it).
     """
 
     def locate(sub, motion, axes, unfired=()):
@@ -604,13 +617,15 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
     translating = jnp.any(valid & (sub.args.phase == Phase.TRANSLATION))
-    if rocking_reads_all(sub.args.block, motion):
+    if rocking_reads_all(sub.args.block):
         return locate(sub, motion, motion_axes)
     if fixed_base(sub.args.base):
+        vertical = has_vertical(motion)
+        still = (_Still(motion), _Still(motion_axes)) if vertical else (_Still(), None)
         return jax.lax.cond(
             translating,
             lambda: locate(sub, motion, motion_axes),
-            lambda: locate(sub, _Still(), None),
+            lambda: locate(sub, *still),
         )
     rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
     quiet = Conditions._fields.index("quiet")

@@ -13,7 +13,7 @@ about the scene that choose a code path:
   form (`_free.py`), and a map finishes it without steps (unless the block's
   sliding is checked).
 - `rocking_reads_all`: the conditions of a rocking block read the ground and
-  the base's force (a block whose sliding is checked, a vertical motion).
+  the base's force (a block whose sliding is checked).
 - `has_vertical`: the ground moves vertically too; g_eff = g + a_v(t) then
   enters the equations, the uplift level and a `weight_borne` isolator's
   force, and every shortcut for a block at rest uses its level at the least
@@ -70,12 +70,11 @@ def closed_form_tail(block: Block, base: AbstractIsolator) -> bool:
     return base.free_rocking_closed_form and block.friction is None
 
 
-def rocking_reads_all(block: Block, signal: AbstractSignal) -> bool:
+def rocking_reads_all(block: Block) -> bool:
     """The event conditions of a rocking block read the ground's acceleration
     and the base's force (static): a block with a `friction`, whose slide
-    condition reads both (`_events.condition_slide`), or a vertical motion
-    (`_events.condition_flight`)."""
-    return block.friction is not None or has_vertical(signal)
+    condition reads both (`_events.condition_slide`)."""
+    return block.friction is not None
 
 
 def has_vertical(signal: AbstractSignal) -> bool:

@@ -114,6 +114,10 @@ class AbstractSignal(AbstractAcceleration):
         `times[-1]` = t1)."""
         return accelerations_at(self, times)
 
+    def step_gravities(self, times):
+        """g_eff (m/s^2) at the times of one step (`step_accelerations`)."""
+        return gravities_at(self, times)
+
 
 def accelerations_at(signal: AbstractAcceleration, times):
     """x_g'' (m/s^2) at any `times`, in one vectorized evaluation: one copy of
@@ -350,6 +354,12 @@ class RecordSignal(AbstractSignal):
         if self.record.vertical is None:
             return GRAVITY
         return GRAVITY + self._vertical_view().acceleration(t)
+
+    def step_gravities(self, times):
+        """g_eff at a step's times from two samples of the vertical part
+        (`step_accelerations`' line)."""
+        view = self._vertical_view()
+        return [GRAVITY + a for a in view.step_accelerations(times)]
 
     def gravity_bound(self, t0, t1):
         if self.record.vertical is None:
