@@ -68,7 +68,7 @@ class _Known(AbstractAcceleration):
     """The ground's acceleration (and g_eff) at one time, already computed:
     what a stage of `_erk_step` or a condition at a step's end reads of the
     motion (read at all of a step's times together in `_attempt`:
-    `step_accelerations`, `gravities_at`)."""
+    `step_accelerations`, `step_gravities`)."""
 
     value: jax.Array
     known_gravity: jax.Array | float = GRAVITY

@@ -654,7 +654,8 @@ def fragility(
         levels: instead of `scales`, intensity levels (> 0, in the units of
             `measure`) to scale every record of `motions` (a `Record` or a
             suite) to: a measure that grows with a record's amplitude
-            (not "d5_95" or "frequency_ratio"; "arias" grows as its square).
+            (not "d5_95", "tp" or "frequency_ratio"; "arias" grows as its
+            square).
         measure: a name of `intensity_measure`; default "pga".
         damage_states: names of damage states (above), e.g.
             ["uplift", "rotation:0.5", "overturning", "displacement:0.2"];
@@ -713,7 +714,7 @@ def fragility(
 
 # How each measure grows with a record's amplitude factor f: as f^power (None:
 # not at all).
-_POWERS = {"arias": 2.0, "d5_95": None, "frequency_ratio": None}
+_POWERS = {"arias": 2.0, "d5_95": None, "tp": None, "frequency_ratio": None}
 
 
 def _stripes(motions, levels, measure, slenderness, size):

@@ -13,6 +13,7 @@ from ._response_spectrum import (
     motion_samples,
     response_spectrum,
 )
+from ._vertical import WithVertical
 
 # The measures by name; "sa:T" is Sa(T) at 5% damping, T in s.
 MEASURES = (
@@ -23,6 +24,7 @@ MEASURES = (
     "arias",
     "cav",
     "d5_95",
+    "tp",
     "pga_ratio",
     "pgv_ratio",
     "frequency_ratio",
@@ -37,6 +39,7 @@ _ATTRS = {
     "arias": {"long_name": "Arias intensity", "units": "m/s"},
     "cav": {"long_name": "cumulative absolute velocity", "units": "m/s"},
     "d5_95": {"long_name": "significant duration D5-95", "units": "s"},
+    "tp": {"long_name": "pulse period T_p", "units": "s"},
     "pga_ratio": {"long_name": "PGA / (g tan alpha)", "units": "1"},
     "pgv_ratio": {"long_name": "PGV p / (g tan alpha)", "units": "1"},
     "frequency_ratio": {"long_name": "omega_p / p", "units": "1"},
@@ -125,6 +128,22 @@ def _integrals(rows, dt, length):
     return v, d, square, running(absolute)
 
 
+def _baseline_corrected(v, d, dt, length):
+    """(v, d) less the velocity's least-squares fit c1 t + c2 t^2 over each
+    row's samples (zero at t = 0, where the record starts from rest: a
+    constant and a linear offset of x_g''), and its integral
+    c1 t^2 / 2 + c2 t^3 / 3 from the displacement."""
+    v, d = v.copy(), d.copy()
+    for r, (h, n) in enumerate(zip(dt, length)):
+        t = h * np.arange(n)
+        basis = np.stack([t, t * t], axis=1)
+        (c1, c2), *_ = np.linalg.lstsq(basis, v[r, :n], rcond=None)
+        v[r, :n] -= c1 * t + c2 * t * t
+        d[r, :n] -= c1 * t * t / 2 + c2 * t**3 / 3
+        v[r, n:], d[r, n:] = v[r, n - 1], d[r, n - 1]
+    return v, d
+
+
 def _significant_duration(square, dt, low=0.05, high=0.95):
     """D5-95 (s) of each row from the running integral of x_g''^2 at the
     samples, the times of 5% and 95% of its total linear between samples."""
@@ -146,13 +165,21 @@ def intensity_measure(
     *,
     slenderness=None,
     size=None,
+    baseline: bool = False,
 ) -> np.ndarray:
     """An intensity measure of a ground motion, or of each motion of a batch.
 
-    A record's measures are exact for its samples, x_g'' linear between them,
-    over its duration and without baseline correction: velocity and
-    displacement are its exact integrals from rest at t = 0, and their peaks
-    are taken over the samples. A scaled record's measures are those of its
+    The measures are those of the horizontal motion (a vertical part is
+    left out). A record's measures are exact for its samples, x_g'' linear
+    between them,
+    over its duration: velocity and displacement are its exact integrals
+    from rest at t = 0, and their peaks are taken over the samples. With
+    `baseline`, PGV and PGD (and "pgv_ratio") are those of the velocity less
+    its least-squares fit c1 t + c2 t^2 over the record (a constant and a
+    linear offset of the acceleration, which a raw record's drift shows as
+    a velocity that does not return to zero) and of its integral; without
+    (the default), of the record as it is, as PEER's processed records are
+    meant to be read. A scaled record's measures are those of its
     unscaled samples, scaled. A closed-form pulse is sampled as in
     `response_spectrum` (its PGA and PGV from its closed forms on 20,001
     points).
@@ -164,6 +191,9 @@ def intensity_measure(
     - "arias": pi / (2 g) times the integral of x_g''^2 (m/s); "cav": the
       integral of |x_g''| (m/s); "d5_95": the time from 5% to 95% of the
       Arias intensity (s).
+    - "tp": the pulse period T_p = 1 / f_p (s): a pulse's own, a record's
+      from the Mavroeidis-Papageorgiou pulse fitted to its velocity
+      (`fit_pulse`: seconds a record; a scale factor does not change it).
     - Of a block (give `slenderness` lambda and `size` r, m; tan alpha =
       1 / lambda, p = sqrt(3 g / (4 r))): "pga_ratio", PGA / (g tan alpha);
       "pgv_ratio", PGV p / (g tan alpha); "frequency_ratio", omega_p / p,
@@ -176,6 +206,8 @@ def intensity_measure(
             measures.
         size: the block's half-diagonal r (m, > 0), for "pgv_ratio" and
             "frequency_ratio".
+        baseline: remove the velocity's quadratic baseline first (records;
+            "pgv", "pgd", "pgv_ratio"); default False.
 
     Returns:
         The measure of each motion of the batch, shape `motion.batch_shape`.
@@ -195,6 +227,8 @@ def intensity_measure(
         1.223
     """
     name, period = parse_measure(measure)
+    if isinstance(motion, WithVertical):  # the measures of its horizontal part
+        motion = motion.horizontal
     _check_inputs(motion, name, measure, slenderness, size)
     shape = tuple(motion.batch_shape)
     if name == "sa":
@@ -204,9 +238,32 @@ def intensity_measure(
         omega = 2 * np.pi * np.asarray(motion.frequency)
         p = np.sqrt(3 * GRAVITY / (4 * np.asarray(size)))
         return np.broadcast_to(omega / p, shape).copy()
+    if name == "tp":
+        return _pulse_period(motion)
     if name in ("pga", "pgv", "pga_ratio", "pgv_ratio"):
-        return _peak_measure(motion, name, slenderness, size)
-    return _integral_measure(motion, name)
+        return _peak_measure(motion, name, slenderness, size, baseline)
+    return _integral_measure(motion, name, baseline)
+
+
+def _pulse_period(motion) -> np.ndarray:
+    """T_p = 1 / f_p (s) of each motion: a pulse's, or of the pulse fitted to
+    each record's velocity (once a row of unscaled samples)."""
+    shape = tuple(motion.batch_shape)
+    if not isinstance(motion, Record):
+        if not isinstance(motion, (MPPulse, SinePulse)):
+            raise ValueError(
+                "measure 'tp' needs a pulse (MPPulse or SinePulse) or a record, "
+                f"got {type(motion).__name__}"
+            )
+        return np.broadcast_to(1.0 / np.asarray(motion.frequency), shape).copy()
+    from ._fit import fit_pulse
+
+    samples = motion_samples(motion)
+    periods = []
+    for row, dt, n in zip(samples.rows, samples.dt, samples.length):
+        fit = fit_pulse(Record(row[: int(n)], float(dt)))
+        periods.append(1.0 / float(fit.pulse.frequency))
+    return samples.of_member(np.array(periods))
 
 
 def _check_inputs(motion, name, measure, slenderness, size) -> None:
@@ -231,11 +288,13 @@ def _check_inputs(motion, name, measure, slenderness, size) -> None:
         )
 
 
-def _peak_measure(motion, name, slenderness, size):
+def _peak_measure(motion, name, slenderness, size, baseline=False):
     """PGA, PGV, or the block's PGA / (g tan alpha) and PGV p / (g tan alpha)."""
     if isinstance(motion, Record):
         samples = motion_samples(motion)
-        v, _, _, _ = _integrals(samples.rows, samples.dt, samples.length)
+        v, d, _, _ = _integrals(samples.rows, samples.dt, samples.length)
+        if baseline:
+            v, _ = _baseline_corrected(v, d, samples.dt, samples.length)
         pga = samples.per_member(np.abs(samples.rows).max(axis=1))
         pgv = samples.per_member(np.abs(v).max(axis=1))
     else:
@@ -252,11 +311,13 @@ def _peak_measure(motion, name, slenderness, size):
     return pgv * p / (GRAVITY * tan_alpha)
 
 
-def _integral_measure(motion, name):
+def _integral_measure(motion, name, baseline=False):
     """PGD, Arias intensity, CAV or D5-95, from the exact integrals of the
     motion's samples."""
     samples = motion_samples(motion)
     v, d, square, absolute = _integrals(samples.rows, samples.dt, samples.length)
+    if baseline and isinstance(motion, Record):
+        v, d = _baseline_corrected(v, d, samples.dt, samples.length)
     if name == "pgd":
         return samples.per_member(np.abs(d).max(axis=1))
     if name == "arias":

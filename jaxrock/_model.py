@@ -168,18 +168,14 @@ def initial_carry(block, base, motion, valid=True) -> Carry:
     return with_start_conditions(c, block, base, motion)
 
 
-def slides_now(c: Carry, block, base, motion, t=None, y=None):
-    """Whether the block has slid by (t, y) in the carry's phase (by default
-    the carry's own time and state): it had, or friction cannot hold it
-    there (`condition_slide` <= 0: a condition that starts a segment at
-    <= 0 never fires). None without a `friction`."""
+def slides_now(c: Carry, block, base, motion):
+    """Whether the block has slid by the carry's time, in its phase: it had,
+    or friction cannot hold it there (`condition_slide` <= 0: a condition
+    that starts a segment at <= 0 never fires). None without a `friction`."""
     if c.slid is None:
         return None
-    t = c.t if t is None else t
-    y = c.y if y is None else y
-    return c.slid | (
-        condition_slide(t, y, segment_args(c, block, base, motion, t)) <= 0
-    )
+    args = segment_args(c, block, base, motion)
+    return c.slid | (condition_slide(c.t, c.y, args) <= 0)
 
 
 def is_active(c: Carry, opts):

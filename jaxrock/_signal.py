@@ -81,7 +81,7 @@ class AbstractSignal(AbstractAcceleration):
 
     def gravity_bound(self, t0, t1):
         """A lower bound of g_eff over [t0, t1] (m/s^2; -inf when none is
-        cheap): g - a bound of |a_v| (the rest rule reads it)."""
+        cheap): g plus a lower bound of a_v (the rest rule reads it)."""
         del t0, t1
         return GRAVITY
 

@@ -74,6 +74,7 @@ _MEASURES = (
     "arias",
     "cav",
     "d5_95",
+    "tp",
     "pga_ratio",
     "pgv_ratio",
     "frequency_ratio",
@@ -466,6 +467,7 @@ def _add_fragility(sub) -> None:
         default="pga",
         help="intensity measure: pga (m/s^2), pgv (m/s), pgd (m), sa:T (Sa at "
         "period T s, 5%% damping, m/s^2), arias (m/s), cav (m/s), d5_95 (s), "
+        "tp (the pulse period, s), "
         "pga_ratio = PGA / (g tan alpha), pgv_ratio = PGV p / (g tan alpha), "
         "frequency_ratio = omega_p / p (a pulse)",
     )

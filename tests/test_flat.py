@@ -19,7 +19,7 @@ def _rising(base):
     return Args(
         jr.Block(3.0, 1.0),
         base,
-        jr.near_fault_pulse("San Fernando PCD/SN"),
+        prepare(jr.near_fault_pulse("San Fernando PCD/SN")),
         jnp.asarray(Phase.RISING),
         jnp.asarray(1.0),
         jnp.asarray(0.0),

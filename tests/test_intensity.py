@@ -187,3 +187,50 @@ def test_records_scaled_to_a_target_spectrum(record):
 def test_scaled_to_spectrum_names_bad_input(record, periods, target, message):
     with pytest.raises(ValueError, match=message):
         record.scaled_to_spectrum(periods, target)
+
+
+def test_baseline_correction_removes_a_drift(record):
+    """A constant offset a0 and a linear drift a1 t added to a record show in
+    its velocity as a0 t + a1 t^2 / 2, which the correction removes: the
+    corrected PGV and PGD of the drifting record equal those of the
+    original less its own baseline."""
+    n, dt = int(record.length), float(record.dt)
+    t = dt * np.arange(n)
+    drifting = jr.Record(np.asarray(record.samples) + 0.3 + 0.05 * t, dt)
+    for measure in ("pgv", "pgd"):
+        plain = jr.intensity_measure(drifting, measure)
+        corrected = jr.intensity_measure(drifting, measure, baseline=True)
+        reference = jr.intensity_measure(record, measure, baseline=True)
+        assert corrected == pytest.approx(reference, rel=1e-9)
+        assert plain > 1.5 * corrected  # the drift dominates uncorrected
+    # Independently: the velocity at the samples (integrated on a fine grid)
+    # less its least-squares fit at the samples.
+    tf, a = _fine(record, per=200)
+    v = _cumulative(tf, a)[::200]
+    basis = np.stack([t, t * t], 1)
+    coefficients, *_ = np.linalg.lstsq(basis, v, rcond=None)
+    expected = np.abs(v - basis @ coefficients).max()
+    corrected = float(jr.intensity_measure(record, "pgv", baseline=True))
+    assert corrected == pytest.approx(expected, rel=1e-6)
+    # A scaled suite's corrected measures scale.
+    suite = jr.Record.stack([record, drifting]).scaled(np.array([1.0, 2.0]))
+    values = jr.intensity_measure(suite, "pgv", baseline=True)
+    assert values[1, 0] == pytest.approx(2 * values[0, 0], rel=1e-12)
+
+
+def test_pulse_period_of_pulses_and_records():
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    assert float(jr.intensity_measure(pulse, "tp")) == pytest.approx(1 / 0.68)
+    # A record that is a sampled pulse gives the pulse's period back.
+    dt = 0.01
+    t = np.arange(0.0, 12.0, dt)
+    shifted = jr.MPPulse(1.0, 0.5, 2.0, 90.0, t0=4.0)
+    record = jr.Record(np.asarray(shifted.acceleration(t)), dt)
+    scaled = jr.Record.stack([record]).scaled(np.array([1.0, 3.0]))
+    periods = jr.intensity_measure(scaled, "tp")
+    assert periods.shape == (2, 1)
+    np.testing.assert_allclose(periods, 2.0, rtol=1e-3)
+    shaken = pulse.with_vertical(jr.SinePulse(2.0, 3.0))  # the horizontal's
+    assert float(jr.intensity_measure(shaken, "tp")) == pytest.approx(1 / 0.68)
+    with pytest.raises(ValueError, match="'tp' needs a pulse"):
+        jr.intensity_measure(jr.WithVertical(shaken, pulse), "tp")

@@ -11,7 +11,9 @@ import pytest
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
-@pytest.mark.parametrize("name", ["behavior_maps", "isolator_tuning", "records"])
+@pytest.mark.parametrize(
+    "name", ["behavior_maps", "isolator_tuning", "records", "museum_study"]
+)
 def test_notebook_runs(name, tmp_path, monkeypatch):
     cells = json.loads((NOTEBOOKS / f"{name}.ipynb").read_text())["cells"]
     code = ["".join(c["source"]) for c in cells if c["cell_type"] == "code"]
