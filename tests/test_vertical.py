@@ -238,3 +238,13 @@ def test_cli_pairs_a_record_with_its_vertical_file(tmp_path, capsys):
     assert "--vertical pairs one motion" in capsys.readouterr().err
     assert main(argv + ["--vertical", str(tmp_path / "none.AT2")]) == 2
     assert "--vertical: no such file" in capsys.readouterr().err
+
+
+def test_fragility_scales_both_parts(pacoima):
+    scales = np.array([0.3, 0.6, 1.0])
+    frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pacoima, scales=scales)
+    np.testing.assert_allclose(frag.im, scales * float(pacoima.pga))  # horizontal
+    for k, s in enumerate(scales):
+        one = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), pacoima.scaled(s))
+        assert bool(frag.overturned[k]) == (int(one.outcome) == jr.Outcome.OVERTURNED)
+        assert bool(frag.rocked[k]) == (int(one.outcome) != jr.Outcome.NO_ROCKING)
