@@ -123,7 +123,9 @@ class BehaviorMap(eqx.Module):
             the end of the window (`Status.UNDECIDED`), "sliding" those whose
             block would slide (`Status.SLIDING`, a map with a `friction`),
             "free_flight" those whose ground fell faster than gravity
-            (`Status.FREE_FLIGHT`, a vertical motion), "not_converged" those
+            (`Status.FREE_FLIGHT`, a vertical motion), "capacity_exceeded"
+            those whose isolator reached its `capacity`
+            (`Status.CAPACITY_EXCEEDED`), "not_converged" those
             with any other status but SUCCESS (each counted under its
             outcome as well).
 
@@ -132,14 +134,19 @@ class BehaviorMap(eqx.Module):
             >>> bm = jr.behavior_map([3.0, 6.0], [0.5, 2.0], jr.FixedBase(),
             ...                      jr.near_fault_pulse("Northridge JFA/SN"))
             >>> bm.counts()
-            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'undecided': 0, 'sliding': 0, 'free_flight': 0, 'not_converged': 0}
+            {'no_rocking': 2, 'rocking': 1, 'overturned': 1, 'undecided': 0, 'sliding': 0, 'free_flight': 0, 'capacity_exceeded': 0, 'not_converged': 0}
         """  # noqa: E501
         out = {o.name.lower(): int(np.sum(self.outcome == o)) for o in Outcome}
-        apart = (Status.SUCCESS, Status.UNDECIDED, Status.SLIDING, Status.FREE_FLIGHT)
-        out["undecided"] = int(np.sum(self.status == Status.UNDECIDED))
-        out["sliding"] = int(np.sum(self.status == Status.SLIDING))
-        out["free_flight"] = int(np.sum(self.status == Status.FREE_FLIGHT))
-        out["not_converged"] = int(np.sum(~np.isin(self.status, apart)))
+        apart = {
+            "undecided": Status.UNDECIDED,
+            "sliding": Status.SLIDING,
+            "free_flight": Status.FREE_FLIGHT,
+            "capacity_exceeded": Status.CAPACITY_EXCEEDED,
+        }
+        for name, status in apart.items():
+            out[name] = int(np.sum(self.status == status))
+        known = [Status.SUCCESS, *apart.values()]
+        out["not_converged"] = int(np.sum(~np.isin(self.status, known)))
         return out
 
     def summary(self) -> str:
@@ -168,6 +175,11 @@ class BehaviorMap(eqx.Module):
             text += f", {c['undecided']} undecided (fate open at the window's end)"
         if c["sliding"]:
             text += f", {c['sliding']} sliding (friction exceeded)"
+        if c["capacity_exceeded"]:
+            text += (
+                f", {c['capacity_exceeded']} past the isolator's capacity "
+                "(it would hit its stop)"
+            )
         if c["free_flight"]:
             text += f", {c['free_flight']} in free flight (ground fell faster than g)"
         if c["not_converged"]:

@@ -307,5 +307,7 @@ class _Chunk(eqx.Module):
             final = free_rocking(
                 carries, blocks, self.base, self.duration, self.opts, ready
             )
-        responses = jax.vmap(response, in_axes=(0, 0, None))(final, blocks, self.opts)
+        responses = jax.vmap(response, in_axes=(0, 0, 0, None))(
+            final, blocks, self.base, self.opts
+        )
         return responses, carries

@@ -422,6 +422,18 @@ class Fragility(eqx.Module):
             return self.overturned
         return self.exceeded[:, self._state_index(which)]
 
+    def _counted(self, which: str) -> np.ndarray:
+        """Whether each analysis counts in the fit of `which`: its status is
+        SUCCESS, or for a displacement of the isolator also
+        CAPACITY_EXCEEDED (`_fitted`)."""
+        ok = self.status == Status.SUCCESS
+        if which in ("rocking", "overturning"):
+            return ok
+        name = self.damage_states[self._state_index(which)]
+        if name.startswith("displacement"):
+            return ok | (self.status == Status.CAPACITY_EXCEEDED)
+        return ok
+
     def confidence_band(
         self,
         which: str = "overturning",
@@ -447,7 +459,7 @@ class Fragility(eqx.Module):
                 f"and {samples!r}"
             )
         reached = self._reached(which)
-        ok = self.status == Status.SUCCESS
+        ok = self._counted(which)
         members = self.motion_index
         count = int(members.max()) + 1
         if im is None:
@@ -489,7 +501,7 @@ class Fragility(eqx.Module):
         if self.levels is None:
             raise ValueError("`stripes` needs a multiple-stripe analysis (`levels`)")
         reached = self._reached(which)
-        ok = (self.status == Status.SUCCESS).reshape(self.levels.size, -1)
+        ok = self._counted(which).reshape(self.levels.size, -1)
         k = np.sum(reached.reshape(self.levels.size, -1) & ok, axis=1)
         return self.levels, k, np.sum(ok, axis=1)
 
@@ -641,7 +653,11 @@ def fragility(
     fraction of its critical angle alpha), "overturning", and the isolator's
     "displacement:D" (max |u| > D m, a capacity). The block's states are
     given from the least to the most severe, an isolator's capacities in
-    increasing order: each state implies the one before it of its kind.
+    increasing order: each state implies the one before it of its kind. On
+    an isolator with a `capacity`, the analyses whose base passes it
+    (`Status.CAPACITY_EXCEEDED`) count in the displacement states, not in
+    the block's; with a `friction` (a map option), those whose block slides
+    (`Status.SLIDING`) count in none.
 
     Args:
         slenderness: the block's lambda = h / b.
@@ -760,10 +776,14 @@ def _fitted(bm, im, parsed) -> dict:
     """A fragility's per-analysis results (one row per cell of the map `bm`,
     its intensity measures `im`) and the lognormal fits of P(rocking),
     P(overturning) and of each parsed damage state over the analyses whose
-    status is SUCCESS."""
+    status is SUCCESS (the isolator's displacement states also over those
+    whose base passed its capacity: their max |u| is that of the isolator
+    without its stop, which passes any displacement up to the capacity)."""
     outcome = bm.outcome.reshape(-1)
     im = np.broadcast_to(im, outcome.shape)
-    ok = bm.status.reshape(-1) == Status.SUCCESS
+    status = bm.status.reshape(-1)
+    ok = status == Status.SUCCESS
+    ok_u = ok | (status == Status.CAPACITY_EXCEEDED)
     rocked = outcome != Outcome.NO_ROCKING
     overturned = outcome == Outcome.OVERTURNED
     med_r, beta_r = fit_lognormal(im[ok], rocked[ok])
@@ -771,7 +791,12 @@ def _fitted(bm, im, parsed) -> dict:
     max_rotation = bm.max_rotation.reshape(-1)
     max_u = bm.max_base_displacement.reshape(-1)
     exceeded = _exceeded(parsed, outcome, max_rotation, max_u)
-    fits = np.array([fit_lognormal(im[ok], e[ok]) for e in exceeded.T]).reshape(-1, 2)
+    fits = [
+        fit_lognormal(im[m], e[m])
+        for (kind, _), e in zip(parsed, exceeded.T)
+        for m in [ok_u if kind == "displacement" else ok]
+    ]
+    fits = np.array(fits).reshape(-1, 2)
     return dict(
         im=np.asarray(im),
         rocked=rocked,

@@ -21,11 +21,13 @@ from ._misc import (
     AbstractChecked,
     Constraint,
     at_least_zero,
+    check,
     computed_once,
     describe_values,
     finite,
     greater_than_zero,
     parameter,
+    real_number,
 )
 from ._translation import free_vibration, free_vibration_bounds, translation_tables
 from ._trig import sincos
@@ -53,6 +55,13 @@ class AbstractIsolator(AbstractChecked):
         (True, 2)
     """
 
+    # The displacement |u| the isolator allows (m; its gap to a stop), or
+    # None: no limit. Keyword-only, so that every isolator takes it.
+    capacity: Float[Array, "..."] | None = eqx.field(
+        default=None,
+        kw_only=True,
+        converter=lambda x: None if x is None else real_number("capacity", x),
+    )
     n_states: ClassVar[int]
     # The leading base states that change along a step (the others, whose
     # `rates` are zero, change only at transitions): None, all of them.
@@ -64,6 +73,17 @@ class AbstractIsolator(AbstractChecked):
     # rolling isolator's restoring force and friction), and follows g_eff
     # under vertical ground motion; a rubber or lead bearing's does not.
     weight_borne: ClassVar[bool] = False
+
+    def __check_init__(self):
+        if self.capacity is not None:
+            check("capacity", self.capacity, lambda v: v > 0, "finite and > 0 (m)")
+
+    def valid(self):
+        out = super().valid()
+        if self.capacity is None:
+            return out
+        c = jnp.asarray(self.capacity)
+        return out & jnp.all(jnp.isfinite(c) & (c > 0))
 
     @abc.abstractmethod
     def initial_state(self) -> Float[Array, " n"] | None:
@@ -140,6 +160,13 @@ class FixedBase(AbstractIsolator):
 
     n_states: ClassVar[int] = 0
     free_rocking_closed_form: ClassVar[bool] = True  # Housner's inverted pendulum
+
+    def __check_init__(self):
+        if self.capacity is not None:
+            raise ValueError(
+                "`capacity` is an isolator's displacement limit; a fixed base "
+                "does not move"
+            )
 
     def initial_state(self):
         return None

@@ -686,15 +686,21 @@ def move_on(c: Carry, t, y, block, base, motion, quiet_now=None) -> Carry:
     )
 
 
-def response(c: Carry, block, opts) -> Response:
+def response(c: Carry, block, base, opts) -> Response:
     status = jnp.where(c.done, c.status, Status.MAX_SEGMENTS)
     status = jnp.where(c.status != Status.SUCCESS, c.status, status)
     # |theta| beyond pi / 2 without the overturn event: an event was missed,
     # and nothing after it can be trusted.
     lost = ~c.overturned & (c.max_theta > 0.5 * jnp.pi)
     status = jnp.where(lost & (status == Status.SUCCESS), Status.SOLVER_FAILED, status)
+    # Outside the model, where it ends as it would: the base reaches its
+    # capacity (an isolator without its stop), or the block slides.
+    final = (status == Status.SUCCESS) | (status == Status.UNDECIDED)
+    if base.capacity is not None:
+        reached = final & (c.max_u >= base.capacity)
+        status = jnp.where(reached, Status.CAPACITY_EXCEEDED, status)
+        final = final & ~reached
     if c.slid is not None:
-        final = (status == Status.SUCCESS) | (status == Status.UNDECIDED)
         status = jnp.where(c.slid & final, Status.SLIDING, status)
     outcome = jnp.where(
         c.overturned,

@@ -82,6 +82,10 @@ class Status(IntEnum):
             ground fell faster than gravity and the block would leave its
             base in free flight, which the model does not follow; the
             analysis stops there, its results those up to then (7).
+        CAPACITY_EXCEEDED: the isolator has a `capacity` and max |u| reached
+            it: the base would hit its stop, which the model does not follow;
+            the results are those of the isolator without a stop (8). It
+            takes precedence over SLIDING; a failure over both.
 
     Examples:
         >>> import jaxrock as jr
@@ -105,6 +109,8 @@ class Status(IntEnum):
     SLIDING = 6
     # The ground fell faster than gravity: the block would leave its base.
     FREE_FLIGHT = 7
+    # The isolator's displacement reached its `capacity`.
+    CAPACITY_EXCEEDED = 8
 
 
 class EventKind(IntEnum):
@@ -464,6 +470,8 @@ class Response(eqx.Module):
             text += " [status SLIDING: the block would slide on its base]"
         elif int(self.status) == Status.FREE_FLIGHT:
             text += " [status FREE_FLIGHT: the block would leave its base]"
+        elif int(self.status) == Status.CAPACITY_EXCEEDED:
+            text += " [status CAPACITY_EXCEEDED: the base would hit its stop]"
         elif int(self.status) != Status.SUCCESS:
             text += f" [status {Status(int(self.status)).name}: not converged]"
         return text

@@ -188,7 +188,7 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
     if closed_form_tail(block, base):
         carry = free_rocking(carry, block, base, duration, opts, tail(carry))
-    return response(carry, block, opts)
+    return response(carry, block, base, opts)
 
 
 _run_jit = eqx.filter_jit(run)
@@ -264,7 +264,9 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
         start_t=c0.t + jnp.zeros((), grid.dtype),
         alpha=block.alpha,
     )
-    return response(c, block, opts), _with_ground_and_z(rows, padded, base, motion)
+    return response(c, block, base, opts), _with_ground_and_z(
+        rows, padded, base, motion
+    )
 
 
 def _empty_rows(padded, passes: int, size: int, kind_dtype) -> dict:

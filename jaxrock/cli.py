@@ -332,6 +332,13 @@ def _add_base_options(q, out: str, compare: str) -> None:
         default=0.5,
         help="m / m_b, block mass over base mass, isolated bases",
     )
+    q.add_argument(
+        "--capacity",
+        type=_positive_float,
+        metavar="D",
+        help="the isolator's displacement capacity (m): an analysis whose base "
+        "passes it ends with status CAPACITY_EXCEEDED; isolated bases",
+    )
     _add_out(q, out)
 
 
@@ -863,18 +870,25 @@ def _base(a):
     import jaxrock as jr
 
     if a.base == "fixed":
+        if a.capacity is not None:
+            raise ValueError("--capacity is an isolator's: give an isolated --base")
         return jr.FixedBase()
+    limit = dict(capacity=a.capacity)
     if a.base == "linear":
-        return jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
+        return jr.LinearIsolator(a.period, a.damping, a.mass_ratio, **limit)
     if a.base == "bilinear":
         return jr.BilinearIsolator(
-            a.strength, a.period, a.yield_displacement, a.mass_ratio
+            a.strength, a.period, a.yield_displacement, a.mass_ratio, **limit
         )
     if a.base == "rolling-sphere":
-        return jr.SphericalRollingIsolator(a.radius, a.rolling_resistance, a.mass_ratio)
+        return jr.SphericalRollingIsolator(
+            a.radius, a.rolling_resistance, a.mass_ratio, **limit
+        )
     if a.base == "rolling-cone":
-        return jr.ConicalRollingIsolator(a.slope, a.rolling_resistance, a.mass_ratio)
-    return jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
+        return jr.ConicalRollingIsolator(
+            a.slope, a.rolling_resistance, a.mass_ratio, **limit
+        )
+    return jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio, **limit)
 
 
 def _inputs(a):

@@ -69,6 +69,7 @@ _STATUS_MARKERS = {
     Status.SLIDING: ("tab:orange", "^", "slides"),
     Status.UNDECIDED: ("tab:gray", "+", "undecided"),
     Status.FREE_FLIGHT: ("tab:purple", "D", "leaves its base"),
+    Status.CAPACITY_EXCEEDED: ("tab:brown", "s", "past capacity"),
     None: ("k", "x", "not converged"),
 }
 
@@ -79,7 +80,9 @@ def behavior_map(bmap: BehaviorMap, ax=None, title: str | None = None):
     Blue no rocking, green rocking, red overturning; cells whose block would
     slide (`Status.SLIDING`, a map with a `friction`) are orange triangles,
     undecided cells (`Status.UNDECIDED`) grey plus signs, cells whose ground
-    fell faster than gravity (`Status.FREE_FLIGHT`) purple diamonds, and
+    fell faster than gravity (`Status.FREE_FLIGHT`) purple diamonds, cells
+    whose isolator passed its capacity (`Status.CAPACITY_EXCEEDED`) brown
+    squares, and
     cells whose analysis did not converge black crosses. Returns the axes.
 
     Draws one map (cells of shape (n_slenderness, n_size)). A map with batch
