@@ -75,6 +75,7 @@ def simulate(
     restitution=None,
     friction_samples=0,
     vertical=None,
+    stop=None,
 ):
     """base: ("fixed",), ("linear", T, xi, mbar), ("fps", mu, R, mbar, Y, A, g, b, eta),
     ("bilinear", q, T, mbar, Y, A, g, b, eta): K = M (2 pi / T)^2, Q = q M g,
@@ -104,6 +105,11 @@ def simulate(
     uplift at the least g_eff over twice the chatter's time at g_eff, on a
     fine grid). Where g_eff reaches 0 the analysis stops with `flight` True
     (the block would leave its base).
+
+    `stop` = (D, T, zeta): past |u| = D the base compresses a stop, a spring
+    and a dashpot of period T (s) and damping ratio zeta per unit total
+    mass, which pushes it back with M (w^2 d + 2 zeta w d') (d = |u| - D,
+    w = 2 pi / T) and never pulls; the solves stop at |u| = D, both ways.
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -141,6 +147,18 @@ def simulate(
         mu, R = base[1], base[2]
         return weight * (M * G / R * u + mu * M * G * x[4])
 
+    def stop_force(x):
+        if stop is None:
+            return 0.0
+        gap, period, zeta = stop
+        u, ud = x[2], x[3]
+        d = abs(u) - gap
+        if d <= 0:
+            return 0.0
+        w = 2 * math.pi / period
+        push = w * w * d + 2 * zeta * w * math.copysign(1.0, u) * ud
+        return math.copysign(M * max(push, 0.0), u)
+
     def bouc_wen(x):
         Y, A, gam, bet, eta = base[4:]
         ud, z = x[3], x[4]
@@ -160,7 +178,7 @@ def simulate(
                 / G
                 * (g * math.sin(s * alpha - th) + ag * math.cos(s * alpha - th)),
             ]
-        F = isolator_force(x, t)
+        F = isolator_force(x, t) + stop_force(x)
         if s == 0:
             udd = -F / M - ag
             out = [0.0, 0.0, x[3], udd]
@@ -176,7 +194,7 @@ def simulate(
         return out
 
     def abs_base_acc(t, x):
-        return acc(t) if fixed else -isolator_force(x, t) / M
+        return acc(t) if fixed else -(isolator_force(x, t) + stop_force(x)) / M
 
     def thr_at(t):
         return gravity(t) * b / h
@@ -219,6 +237,7 @@ def simulate(
     t = 0.0
     phase, s = "T", 1
     rocked = overturned = flight = False
+    last_touch = [-math.inf, 0.0]  # the last touch of the stop, and its side
     uplift_time = math.nan
     max_th = max_u = 0.0
     impacts = 0
@@ -326,10 +345,23 @@ def simulate(
             peak = lambda t, x, s: x[3]  # noqa: E731
             peak.terminal, peak.direction = False, 0
             events.append(peak)
+        fall_index = touch_index = None
         if vertical is not None:
             fall = lambda t, x, s: gravity(t)  # noqa: E731
             fall.terminal, fall.direction = True, -1
+            fall_index = len(events)
             events.append(fall)
+        if stop is not None:  # the stop's kink ends a solve, both ways
+
+            def touch(t, x, s, since=last_touch):
+                # Just after a touch, its side (the solve starts on the root).
+                if t <= since[0] + 1e-9:
+                    return since[1]
+                return abs(x[2]) - stop[0]
+
+            touch.terminal, touch.direction = True, 0
+            touch_index = len(events)
+            events.append(touch)
         sol = solve_ivp(
             rhs,
             (t, _next_break(breaks, t, t_end)),
@@ -352,7 +384,7 @@ def simulate(
                 needed = max(needed, force_ratio(tt, xx, sp))
         if not fixed and len(sol.y_events[2]):
             max_u = max(max_u, np.max(np.abs(sol.y_events[2][:, 2])))
-        if vertical is not None and len(sol.t_events[-1]):
+        if fall_index is not None and len(sol.t_events[fall_index]):
             t, x = sol.t[-1], sol.y[:, -1].copy()
             max_th = max(max_th, abs(x[0]))
             flight = True
@@ -365,6 +397,9 @@ def simulate(
             max_u = max(max_u, abs(x[2]))
         max_th = max(max_th, abs(x[0]))
         if not (hit[0] or hit[1]):
+            if touch_index is not None and len(sol.t_events[touch_index]):
+                outward = x[2] * x[3] > 0  # it enters the stop, else leaves it
+                last_touch[:] = [t, 1e-30 if outward else -1e-30]
             if t < t_end:
                 continue  # a kink: the same phase goes on
             break

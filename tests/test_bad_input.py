@@ -49,7 +49,7 @@ def test_rotation_past_overturning_without_the_event_is_a_failure():
     lost = eqx.tree_at(
         lambda c: (c.max_theta, c.done), c, (jnp.asarray(2.0), jnp.asarray(True))
     )
-    r = _model.response(lost, block, jr.SolverOptions())
+    r = _model.response(lost, block, base, jr.SolverOptions())
     assert int(r.status) == jr.Status.SOLVER_FAILED
     assert int(r.outcome) != jr.Outcome.OVERTURNED
 
