@@ -95,6 +95,7 @@ from ._isolators import (
 from ._isolators import (
     SphericalRollingIsolator as SphericalRollingIsolator,
 )
+from ._isolators import Stop as Stop
 from ._labeled import Coordinates as Coordinates  # noqa: E402
 from ._maps import BehaviorMap as BehaviorMap  # noqa: E402
 from ._maps import behavior_map as behavior_map

@@ -45,6 +45,8 @@ class Args(eqx.Module):
     # The block slid already (its slide condition is disarmed); None: the
     # block has no `friction`.
     slid: jnp.ndarray | None = None
+    # The base is against its stop (`in_stop`); None: the base has none.
+    in_stop: jnp.ndarray | None = None
 
 
 def _geometry(block, theta, s):
@@ -53,14 +55,19 @@ def _geometry(block, theta, s):
     return block.h * cos + s * block.b * sin, s * block.b * cos - block.h * sin
 
 
-def isolator_force(base: AbstractIsolator, state, gravity):
+def isolator_force(base: AbstractIsolator, state, gravity, against_stop=None):
     """The isolator's force per unit total mass at g_eff = `gravity`
     (m/s^2): a `weight_borne` isolator's force, proportional to the normal
     force M g, times g_eff / g (the paper's N = M g with g -> g_eff); any
-    other's as it is."""
+    other's as it is; plus its `stop`'s, in a segment against it
+    (`against_stop`, the segment's `Args.in_stop`: the dashpot's force jumps
+    where the base meets the stop, at the segment's start), else past the
+    `capacity`."""
     f = base.force(state)
     if base.weight_borne and not isinstance(gravity, float):
         f = f * (gravity / GRAVITY)
+    if base.stop is not None:
+        f = f + base.stop.force(state, base.capacity, against_stop)
     return f
 
 
@@ -84,7 +91,7 @@ def _accelerations(t, y, args: Args):
     if fixed_base(base):
         theta_ddot = -(c1 * ag + g * s1) / j
         return jnp.where(rocking, theta_ddot, 0.0), None, ag, g
-    f = isolator_force(base, base_state, g)
+    f = isolator_force(base, base_state, g, args.in_stop)
     mu = base.block_mass_fraction
     det = j - mu * c1**2
     rhs_u = -ag - mu * s1 * theta_dot**2 - f
@@ -154,6 +161,24 @@ def impact_friction(block: Block, base: AbstractIsolator):
     return (1.0 - mu) * block.slenderness * (1.0 - e) / (1.0 + e)
 
 
+def in_stop(base_state, base):
+    """Whether the base is against its `stop` (past |u| = capacity, or on it
+    and moving out), for the stop's event condition of the segment that
+    starts in `base_state`; None without a stop."""
+    if base.stop is None:
+        return None
+    u, u_dot = base_state[0], base_state[1]
+    gap = jnp.abs(u) - base.capacity
+    # A located touch lies within rounding of the gap: its side is the
+    # motion's.
+    near = STOP_ROUNDING * base.capacity
+    return jnp.where(u * u_dot > 0, gap >= -near, gap > near)
+
+
+# Of the capacity: the width of the gap's rounding after a located touch.
+STOP_ROUNDING = 1e-9
+
+
 def rest_level(block: Block, slid, gravity=GRAVITY):
     """|u'' + x_g''| (m/s^2) below which nothing happens to a block at rest on
     its base: it uplifts at g tan(alpha) and, with a `friction` mu, until it
@@ -177,12 +202,12 @@ def base_acceleration_bound(t, window, base_state, base, motion):
     return jnp.abs(absolute_base_acceleration(t, base_state, base, motion))
 
 
-def absolute_base_acceleration(t, base_state, base, motion):
+def absolute_base_acceleration(t, base_state, base, motion, against_stop=None):
     """u'' + x_g'' in pure translation (m/s^2): -F / M, or x_g'' on a fixed base."""
     if fixed_base(base):
         a = motion.acceleration(t)
     else:
-        a = -isolator_force(base, base_state, motion.gravity(t))
+        a = -isolator_force(base, base_state, motion.gravity(t), against_stop)
     # Read by both uplift conditions and much of the transition.
     return computed_once(a)
 

@@ -19,8 +19,9 @@ energy can neither uplift the block nor raise max |u| (the fixed base needs no
 event: a block at rest there after the excitation stays at rest).
 "slide" (blocks with a `friction` only) fires where the friction needed to
 hold the block reaches what its interface gives (`condition_slide`).
-"flight" (under vertical ground motion only) fires where g + a_v(t) reaches
-0 (`condition_flight`).
+"stop" (isolators with a `stop`) fires where the base meets or leaves it
+(`condition_stop`). "flight" (under vertical ground motion only) fires where
+g + a_v(t) reaches 0 (`condition_flight`).
 "guard" catches a phase begun on the wrong side of a near double root of theta'
 (see `condition_guard`). Diffrax lets the first condition in PyTree order win
 when several fire in one step; `transition` then redoes the segment up to
@@ -56,7 +57,9 @@ def _by_phase(phase, translation, rising, falling):
 def condition_angle(t, y, args: Args, **kwargs):
     del kwargs
     theta, _, base_state = y
-    a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
+    a_abs = absolute_base_acceleration(
+        t, base_state, args.base, args.motion, args.in_stop
+    )
     s_theta = args.sign * theta
     return _by_phase(
         args.phase,
@@ -69,7 +72,9 @@ def condition_angle(t, y, args: Args, **kwargs):
 def condition_rate(t, y, args: Args, **kwargs):
     del kwargs
     _, theta_dot, base_state = y
-    a_abs = absolute_base_acceleration(t, base_state, args.base, args.motion)
+    a_abs = absolute_base_acceleration(
+        t, base_state, args.base, args.motion, args.in_stop
+    )
     s_theta_dot = args.sign * theta_dot
     return _by_phase(
         args.phase,
@@ -83,6 +88,8 @@ def quiet(y, args: Args):
     """<= 0 when nothing can happen any more: ground still, block in translation,
     and the base's energy too low to uplift it or to raise max |u|."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
+    if args.base.stop is not None:  # a base that may reach its stop: no bound
+        f_bound = jnp.where(u_bound >= args.base.capacity, jnp.inf, f_bound)
     value = jnp.maximum(
         u_bound - args.max_base_displacement,
         f_bound - rest_level(args.block, args.slid),
@@ -139,6 +146,15 @@ def condition_slide(t, y, args: Args, **kwargs):
     r_x, r_y = contact_forces(t, y, args)
     armed = ~args.slid & (args.sign * y[0] < args.block.alpha)
     return jnp.where(armed, args.block.friction * r_y - jnp.abs(r_x), 1.0)
+
+
+def condition_stop(t, y, args: Args, **kwargs):
+    """|u| - capacity against the stop, capacity - |u| off it (`in_stop`,
+    m): <= 0 where the base meets or leaves its stop, the kink of its force
+    (isolators with a `stop`)."""
+    del t, kwargs
+    gap = jnp.abs(y[2][0]) - args.base.capacity
+    return jnp.where(args.in_stop, gap, -gap)
 
 
 def condition_flight(t, y, args: Args, **kwargs):

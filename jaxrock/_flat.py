@@ -561,7 +561,8 @@ class _ForceFree(AbstractIsolator):
     """An isolated base without its force: what the root find of rocking lanes
     reads of it (their conditions are the block's angles, the base's u and
     u'; the force, a friction pendulum's z among it, enters only the uplift
-    conditions of pure translation)."""
+    conditions of pure translation). It keeps the base's `capacity` and
+    `stop`, whose event condition reads u."""
 
     base: AbstractIsolator
 
@@ -627,7 +628,9 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
             lambda: locate(sub, motion, motion_axes),
             lambda: locate(sub, *still),
         )
-    rocking = eqx.tree_at(lambda s: s.args.base, sub, _ForceFree(sub.args.base))
+    base = sub.args.base
+    free = _ForceFree(base, capacity=base.capacity, stop=base.stop)
+    rocking = eqx.tree_at(lambda s: s.args.base, sub, free)
     quiet = Conditions._fields.index("quiet")
     return jax.lax.cond(
         translating,

@@ -29,6 +29,7 @@ from ._dynamics import (
     base_acceleration_bound,
     impact,
     impact_friction,
+    in_stop,
     rest_level,
     restitution,
     restitution_valid,
@@ -43,6 +44,7 @@ from ._events import (
     condition_quiet,
     condition_rate,
     condition_slide,
+    condition_stop,
     quiet,
 )
 from ._ground import AbstractGroundMotion
@@ -111,9 +113,11 @@ class Carry(eqx.Module):
 def _uplift_now(t, y, phase, block, base, motion):
     """In translation with |u'' + x_g''| >= g tan(alpha): rocking starts at once.
 
-    Returns (uplift, sign). Applies at t = 0 and when rocking ends at an impact.
+    Returns (uplift, sign). Applies at t = 0, when rocking ends at an impact,
+    and where the base meets its stop (whose dashpot's force jumps there:
+    the uplift conditions would start at <= 0 and never fire).
     """
-    a_abs = absolute_base_acceleration(t, y[2], base, motion)
+    a_abs = absolute_base_acceleration(t, y[2], base, motion, in_stop(y[2], base))
     threshold = uplift_level(block, motion.gravity(t))
     uplift = (phase == Phase.TRANSLATION) & (jnp.abs(a_abs) >= threshold)
     return uplift, jnp.where(a_abs < 0, 1.0, -1.0)
@@ -214,7 +218,7 @@ def segment_args(c: Carry, block, base, motion, t=None) -> Args:
     (at t, by default the carry's)."""
     t = c.t if t is None else t
     args = (c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref, c.slid)
-    return Args(block, base, motion, *args)
+    return Args(block, base, motion, *args, in_stop(c.y[2], base))
 
 
 def with_start_conditions(c: Carry, block, base, motion) -> Carry:
@@ -286,6 +290,7 @@ class Conditions(NamedTuple):
     quiet: Callable | None = None  # nothing can happen any more (isolated bases)
     slide: Callable | None = None  # friction cannot hold the block (a `friction`)
     flight: Callable | None = None  # g_eff reaches 0 (vertical ground motion)
+    stop: Callable | None = None  # the base meets or leaves its stop
 
 
 def event_conditions(block, base, motion) -> Conditions:
@@ -294,6 +299,7 @@ def event_conditions(block, base, motion) -> Conditions:
     sliding, a motion without a vertical part no free flight)."""
     slide = None if block.friction is None else condition_slide
     flight = condition_flight if has_vertical(motion) else None
+    stop = None if base.stop is None else condition_stop
     if fixed_base(base):
         return Conditions(
             condition_angle,
@@ -311,6 +317,7 @@ def event_conditions(block, base, motion) -> Conditions:
         condition_quiet,
         slide,
         flight,
+        stop,
     )
 
 
@@ -367,6 +374,7 @@ class _Events(NamedTuple):
     quiet: Array  # "quiet" (isolated bases)
     slide: Array  # "slide" (blocks with a `friction`)
     flight: Array  # "flight" (vertical ground motion)
+    stop: Array  # "stop" (isolators with a stop)
     towards_plus: Array  # an uplift is about the corner at x = +b
 
 
@@ -394,6 +402,7 @@ EVENT_TABLE = (
     _Rule("base_peak", None, EventKind.BASE_PEAK),
     _Rule("slide", None, EventKind.SLIDE),
     _Rule("flight", None, EventKind.FLIGHT),  # (the analysis ends)
+    _Rule("stop", None, EventKind.STOP),
 )
 
 
@@ -428,6 +437,7 @@ def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
         quiet=hit(mask.quiet),
         slide=hit(mask.slide),
         flight=hit(mask.flight),
+        stop=hit(mask.stop),
         towards_plus=angle,
     )
 
@@ -466,7 +476,7 @@ def _next_phase(c: Carry, ev: _Events, rest, t, y, block, base, motion):
     sign = jnp.where(ev.uplift, jnp.where(ev.towards_plus, 1.0, -1.0), c.sign)
     sign = jnp.where(ev.impact & ~rest, -c.sign, sign)
     again, again_sign = _uplift_now(t, y, phase, block, base, motion)
-    again = again & ev.impact & rest
+    again = again & ((ev.impact & rest) | ev.stop)
     phase = jnp.where(again, Phase.RISING, phase)
     sign = jnp.where(again, again_sign, sign)
     return phase, sign, ev.uplift | again
@@ -696,7 +706,7 @@ def response(c: Carry, block, base, opts) -> Response:
     # Outside the model, where it ends as it would: the base reaches its
     # capacity (an isolator without its stop), or the block slides.
     final = (status == Status.SUCCESS) | (status == Status.UNDECIDED)
-    if base.capacity is not None:
+    if base.capacity is not None and base.stop is None:
         reached = final & (c.max_u >= base.capacity)
         status = jnp.where(reached, Status.CAPACITY_EXCEEDED, status)
         final = final & ~reached

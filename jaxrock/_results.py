@@ -82,8 +82,9 @@ class Status(IntEnum):
             ground fell faster than gravity and the block would leave its
             base in free flight, which the model does not follow; the
             analysis stops there, its results those up to then (7).
-        CAPACITY_EXCEEDED: the isolator has a `capacity` and max |u| reached
-            it: the base would hit its stop, which the model does not follow;
+        CAPACITY_EXCEEDED: the isolator has a `capacity` without a `stop`
+            and max |u| reached it: the base would hit its stop, which the
+            model then does not follow;
             the results are those of the isolator without a stop (8). It
             takes precedence over SLIDING; a failure over both.
 
@@ -141,6 +142,8 @@ class EventKind(IntEnum):
             its own (`Status.SLIDING`); the analysis goes on without sliding.
         FLIGHT: g + a_v(t) reaches 0 under vertical ground motion
             (`Status.FREE_FLIGHT`); the analysis ends.
+        STOP: the base meets its `Stop` (|u| reaches the isolator's
+            capacity) or leaves it.
 
     Examples:
         >>> import jaxrock as jr
@@ -160,6 +163,7 @@ class EventKind(IntEnum):
     QUIET = 9  # ground still and too little energy left to uplift or move further
     SLIDE = 10  # the friction needed to hold the block reaches its own
     FLIGHT = 11  # g + a_v reaches 0: the block would leave its base
+    STOP = 12  # the base meets or leaves its stop
 
 
 # The defaults of every analysis (`simulate`, maps, design): integrator

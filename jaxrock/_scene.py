@@ -51,7 +51,7 @@ def prepare(motion, base: AbstractIsolator | None = None) -> AbstractSignal:
         return motion
     if isinstance(motion, Record):
         signal = RecordSignal(motion.unlabeled()).with_peaks()
-        if base is not None:
+        if base is not None and base.stop is None:  # (tables of a free base)
             signal = signal.with_translation(base)
         return signal
     return ClosedFormSignal(motion.unlabeled())

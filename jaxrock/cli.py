@@ -337,7 +337,21 @@ def _add_base_options(q, out: str, compare: str) -> None:
         type=_positive_float,
         metavar="D",
         help="the isolator's displacement capacity (m): an analysis whose base "
-        "passes it ends with status CAPACITY_EXCEEDED; isolated bases",
+        "passes it ends with status CAPACITY_EXCEEDED (without --stop-period); "
+        "isolated bases",
+    )
+    q.add_argument(
+        "--stop-period",
+        type=_positive_float,
+        metavar="T",
+        help="a stop at --capacity: a spring and dashpot of contact period T (s) "
+        "that push the base back (e.g. 0.05 for a stiff rubber bumper)",
+    )
+    q.add_argument(
+        "--stop-damping",
+        type=float,
+        default=0.2,
+        help="the stop's damping ratio, in [0, 1) (default 0.2)",
     )
     _add_out(q, out)
 
@@ -870,10 +884,17 @@ def _base(a):
     import jaxrock as jr
 
     if a.base == "fixed":
-        if a.capacity is not None:
-            raise ValueError("--capacity is an isolator's: give an isolated --base")
+        if a.capacity is not None or a.stop_period is not None:
+            raise ValueError(
+                "--capacity and --stop-period are an isolator's: give an isolated "
+                "--base"
+            )
         return jr.FixedBase()
     limit = dict(capacity=a.capacity)
+    if a.stop_period is not None:
+        if a.capacity is None:
+            raise ValueError("--stop-period needs --capacity, where the stop is")
+        limit["stop"] = jr.Stop(a.stop_period, a.stop_damping)
     if a.base == "linear":
         return jr.LinearIsolator(a.period, a.damping, a.mass_ratio, **limit)
     if a.base == "bilinear":
