@@ -91,7 +91,7 @@ def test_cli_capacity_is_checked(capsys):
     from jaxrock.cli import main
 
     assert main(["map", "--base", "fixed", "--capacity", "0.2"]) == 2
-    assert "--capacity is an isolator's" in capsys.readouterr().err
+    assert "--capacity and --stop-period are an isolator's" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["map", "--base", "linear", "--capacity", "-1"])
     assert "--capacity: must be finite and > 0" in capsys.readouterr().err

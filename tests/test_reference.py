@@ -236,3 +236,43 @@ def test_conical_rolling_isolator_matches_reference(case):
     base = jr.ConicalRollingIsolator(slope, mu, mass_ratio, apex=apex)
     ref_base = ("cone", mu, (slope, apex), mass_ratio, 5e-4, 1.0, 0.9, 0.1, 2.0)
     _matches_reference(base, ref_base, case)
+
+
+@pytest.mark.parametrize("kind", ["bilinear", "cone"])
+def test_new_isolators_under_a_record_match_reference(two_records, kind):
+    """The bilinear and rolling isolators under the first 8 s of El Centro
+    Array #6 (233) in a map, against the reference, whose solves stop at every
+    sample: slender blocks, which rock on them."""
+    record = two_records[0]
+    record = jr.Record(record.samples[:801], record.dt, name=record.name)
+    if kind == "bilinear":
+        q, period, y, mass_ratio = BILINEAR
+        base = jr.BilinearIsolator(q, period, y, mass_ratio)
+        ref_base = ("bilinear", q, period, mass_ratio, y, 1.0, 0.9, 0.1, 2.0)
+    else:
+        slope, mu, mass_ratio, apex = CONE
+        base = jr.ConicalRollingIsolator(slope, mu, mass_ratio, apex=apex)
+        ref_base = ("cone", mu, (slope, apex), mass_ratio, 5e-4, 1.0, 0.9, 0.1, 2.0)
+    lam, size = np.array([6.0, 20.0]), np.array([0.6])
+    duration = float(record.end_time) + 3.0
+    bm = jr.behavior_map(
+        lam, size, base, record, duration=duration, rtol=1e-10, atol=1e-12
+    )
+    acc, _, breaks = ref.record(record.samples, float(record.dt))
+    rocked = 0
+    for i, j in np.ndindex(lam.size, size.size):
+        theirs = ref.simulate(
+            lam[i], size[j], ref_base, acc, duration, float(record.dt), breaks=breaks
+        )
+        assert bm.outcome[i, j] == theirs["outcome"], (lam[i], size[j])
+        assert bm.impacts[i, j] == theirs["impacts"], (lam[i], size[j])
+        np.testing.assert_allclose(
+            bm.max_rotation[i, j], theirs["max_rotation"], rtol=1e-6, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            bm.max_base_displacement[i, j],
+            theirs["max_base_displacement"],
+            rtol=1e-6,
+        )
+        rocked += theirs["outcome"] > 0
+    assert rocked >= 1
