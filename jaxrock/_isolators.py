@@ -213,6 +213,20 @@ class AbstractIsolator(AbstractChecked):
         """
 
 
+def describe_base(base: AbstractIsolator) -> str:
+    """The base's `describe()`, with its capacity and stop (for titles)."""
+    text = base.describe()
+    if base.capacity is None:
+        return text
+    text += f", capacity {describe_values(base.capacity)} m"
+    if base.stop is not None:
+        text += (
+            f", stop (T = {describe_values(base.stop.period)} s, "
+            f"zeta = {describe_values(base.stop.damping)})"
+        )
+    return text
+
+
 class FixedBase(AbstractIsolator):
     """No isolation: the block stands on the ground (Housner's problem, 1 DOF).
 

@@ -23,7 +23,7 @@ from ._dynamics import check_restitution
 from ._executor import check_executor, run_tasks
 from ._grid import Grid, check_fits_in_memory
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractIsolator
+from ._isolators import AbstractIsolator, describe_base
 from ._labeled import coordinates
 from ._misc import as_float, broadcast_batch_shape, grid_axis
 from ._model import check_base_and_motion
@@ -433,7 +433,7 @@ def _assemble(grid: Grid, results, seconds, useful, executed) -> BehaviorMap:
         slenderness=grid.lam,
         size=grid.r,
         **fields,
-        base=grid.base.describe(),
+        base=describe_base(grid.base),
         motion=grid.motion.describe(),
         seconds=seconds,
         lane_efficiency=useful / max(executed, 1),
