@@ -107,7 +107,8 @@ def main():
     axes[0].set_ylabel("strength Q / Mg")
     fig.colorbar(image, ax=axes, shrink=0.8)
     fig.suptitle(
-        "statue lambda 4, r 1 m; FEMA P695 near-field suite (56 components) as recorded; "
+        "statue lambda 4, r 1 m; FEMA P695 near-field suite (56 components) as "
+        "recorded; "
         f"fixed base: P(overturning) = {p_fixed:.2f}",
         fontsize=9,
     )
