@@ -12,7 +12,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._ground import AbstractGroundMotion
-from ._misc import broadcast_batch_shape
 from ._record import Record
 
 
@@ -25,6 +24,16 @@ class WithVertical(AbstractGroundMotion):
     Attributes:
         horizontal: the horizontal motion (m/s^2).
         vertical: the vertical acceleration a_v (m/s^2, positive upward).
+
+    Examples:
+        >>> import jaxrock as jr
+        >>> pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+        >>> shaken = pulse.with_vertical(jr.SinePulse(amplitude=4.0, frequency=1.5))
+        >>> type(shaken).__name__, round(float(shaken.end_time), 3)
+        ('WithVertical', 2.353)
+        >>> r = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), shaken)
+        >>> jr.Outcome(int(r.outcome)).name
+        'OVERTURNED'
     """
 
     horizontal: AbstractGroundMotion
@@ -51,10 +60,6 @@ class WithVertical(AbstractGroundMotion):
         if not steps:
             return None
         return steps[0] if len(steps) == 1 else jnp.minimum(*steps)
-
-    @property
-    def batch_shape(self):
-        return broadcast_batch_shape(self)
 
     def valid(self):
         return self.horizontal.valid() & self.vertical.valid()
