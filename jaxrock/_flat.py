@@ -173,6 +173,58 @@ class _Attempt(eqx.Module):
         return sum(self.fired, jnp.asarray(False)) > 0
 
 
+def _solver_step(solver, term, t0, t1, y0, args, motion):
+    """One step of `solver` from (t0, y0) to t1: (y1, the error estimate, the
+    dense information, the solver's result, and the vector field's arguments
+    at t0 and at t1). An explicit Runge-Kutta method reads x_g'' and g_eff
+    at its stage times and at t1 together, and runs unrolled (`_erk_step`;
+    a method whose stages leave [t0, t1] reads them as any times)."""
+    if not _unrollable(solver):
+        state = solver.init(term, t0, t1, y0, args)
+        y1, y_error, dense, _, result = solver.step(
+            term, t0, t1, y0, args, state, made_jump=False
+        )
+        return y1, y_error, dense, result, args, args
+    times = _stage_times(solver.tableau, t0, t1) + [t1]
+    within = all(0 <= c <= 1 for c in solver.tableau.c)
+    if within:
+        ground = motion.step_accelerations(times)
+    else:
+        ground = accelerations_at(motion, times)
+    gravity = [GRAVITY] * len(times)
+    if has_vertical(motion):
+        gravity = (
+            motion.step_gravities(times) if within else gravities_at(motion, times)
+        )
+    args0 = _with_ground(args, ground[0], gravity[0])
+    args1 = _with_ground(args, ground[-1], gravity[-1])
+    y1, y_error, dense = _erk_step(solver.tableau, t0, t1, y0, args, ground, gravity)
+    y1, y_error = computed_once((y1, y_error))  # read by most of the step
+    return y1, y_error, dense, diffrax.RESULTS.successful, args0, args1
+
+
+def _crossings(conditions, starts, keep, start, end):
+    """The event conditions over a step from `start` to `end` ((t, y, args)
+    each): per condition, whether it went from > 0 to <= 0 (`crossed`, in a
+    kept step) and whether it ends the step (`fired`: the first in order to
+    cross); whether any did, the fired one's values at the two ends, and
+    every condition at the end. At the start they are `starts` where the
+    carry has them (the end of the last step), else evaluated."""
+    crossed, fired, before = [], [], jnp.asarray(False)
+    g0 = g1 = jnp.zeros_like(start[0])
+    ends = []
+    for i, cond in enumerate(jax.tree_util.tree_leaves(conditions)):
+        v0 = cond(*start) if starts is None else starts[i]
+        v1 = cond(*end)
+        ends.append(v1)
+        crossed.append(keep & (v0 > 0) & (v1 <= 0))
+        hit = crossed[-1] & ~before
+        fired.append(hit)
+        before = before | hit
+        g0, g1 = jnp.where(hit, v0, g0), jnp.where(hit, v1, g1)
+    return tuple(crossed), tuple(fired), before, g0, g1, tuple(ends)
+
+
 def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     """One step attempt of one lane, and the conditions at its ends."""
     active, args, conditions, t_stop, dtmax, controller = segment_setup(
@@ -190,33 +242,8 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     t1 = t0 + dt if kink is None else motion.step_end(t0, dt, kink)
     t1 = jnp.minimum(t1, t_stop)
     t1 = jnp.where(active, t1, t0 + 1.0)  # a frozen lane: a harmless dummy step
-    args0 = args1 = args
-    if _unrollable(solver):
-        # x_g'' at the stage times and at t1, read together (a method whose
-        # stages leave [t0, t1] reads them as any times).
-        times = _stage_times(solver.tableau, t0, t1) + [t1]
-        within = all(0 <= c <= 1 for c in solver.tableau.c)
-        if within:
-            ground = motion.step_accelerations(times)
-        else:
-            ground = accelerations_at(motion, times)
-        gravity = [GRAVITY] * len(times)
-        if has_vertical(motion):
-            gravity = (
-                motion.step_gravities(times) if within else gravities_at(motion, times)
-            )
-        args0 = _with_ground(args, ground[0], gravity[0])
-        args1 = _with_ground(args, ground[-1], gravity[-1])
-        y1, y_error, dense = _erk_step(
-            solver.tableau, t0, t1, y0, args, ground, gravity
-        )
-        y1, y_error = computed_once((y1, y_error))  # read by most of the step
-        solver_result = diffrax.RESULTS.successful
-    else:
-        state = solver.init(term, t0, t1, y0, args)
-        y1, y_error, dense, _, solver_result = solver.step(
-            term, t0, t1, y0, args, state, made_jump=False
-        )
+    step = _solver_step(solver, term, t0, t1, y0, args, motion)
+    y1, y_error, dense, solver_result, args0, args1 = step
     # The controller's next step, before it ends at a kink (`KinkClip`): the
     # next attempt ends it there (`step_end`). (`StepSizeController` keeps no
     # state between steps.)
@@ -229,20 +256,10 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
     stale = jnp.asarray(False)
     if c.quiet_end is not None:
         stale = (level > 0) & ~motion.quiet_holds(next_t0, c.quiet_end)
-    # Events: the first condition (in order) that goes from > 0 to <= 0. At
-    # t0 they are carried, where the carry has them (the end of the last step).
-    crossed, fired, before = [], [], jnp.asarray(False)
-    g0 = g1 = jnp.zeros_like(t0)
-    starts, ends = c.start_conditions, []
-    for i, cond in enumerate(jax.tree_util.tree_leaves(conditions)):
-        v0 = cond(t0, y0, args0) if starts is None else starts[i]
-        v1 = cond(t1, y1, args1)
-        ends.append(v1)
-        crossed.append(keep & (v0 > 0) & (v1 <= 0))
-        hit = crossed[-1] & ~before
-        fired.append(hit)
-        before = before | hit
-        g0, g1 = jnp.where(hit, v0, g0), jnp.where(hit, v1, g1)
+    starts = c.start_conditions
+    crossed, fired, before, g0, g1, ends = _crossings(
+        conditions, starts, keep, (t0, y0, args0), (t1, y1, args1)
+    )
     failed = (solver_result != diffrax.RESULTS.successful) | (
         ctrl_result != diffrax.RESULTS.successful
     )
@@ -262,13 +279,13 @@ def _attempt(c, block, base, motion, duration, opts) -> _Attempt:
         y0,
         y1,
         keep,
-        tuple(crossed),
-        tuple(fired),
+        crossed,
+        fired,
         g0,
         g1,
         dense,
         args,
-        None if starts is None else tuple(ends),
+        None if starts is None else ends,
         next_dt,
         next_t0,
         proposed,

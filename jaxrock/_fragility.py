@@ -645,19 +645,17 @@ def fragility(
     analyses run as one behavior map with motion axes. The intensity measure
     of each analysis is computed from its own scaled motion by
     `intensity_measure` (the block's measures with this block). P(rocking)
-    and P(overturning)
-    are fitted as lognormal curves by maximum likelihood over the analyses
-    whose status is SUCCESS, and so is each of `damage_states`, a ladder of
-    states of increasing severity defined on the results: "uplift" (the block
-    rocked), "rotation:X" (max |theta| / alpha > X, the block's rotation as a
-    fraction of its critical angle alpha), "overturning", and the isolator's
-    "displacement:D" (max |u| > D m, a capacity). The block's states are
-    given from the least to the most severe, an isolator's capacities in
-    increasing order: each state implies the one before it of its kind. On
-    an isolator with a `capacity`, the analyses whose base passes it
-    (`Status.CAPACITY_EXCEEDED`) count in the displacement states, not in
-    the block's; with a `friction` (a map option), those whose block slides
-    (`Status.SLIDING`) count in none.
+    and P(overturning) are fitted as lognormal curves by maximum likelihood
+    over the analyses whose status is SUCCESS, and so is each of
+    `damage_states`, a ladder of states of increasing severity defined on
+    the results: "uplift" (the block rocked), "rotation:X" (max |theta| /
+    alpha > X, the block's rotation as a fraction of its critical angle
+    alpha), "overturning", and the isolator's "displacement:D" (max |u| > D
+    m, a capacity). The block's states are given from the least to the most
+    severe, an isolator's capacities in increasing order: each state implies
+    the one before it of its kind. Analyses past an isolator's `capacity`
+    count in the displacement states only, those whose block slides (a
+    `friction`) in none.
 
     Args:
         slenderness: the block's lambda = h / b.
@@ -703,12 +701,9 @@ def fragility(
     states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
-    if levels is not None and scales is not None:
-        raise ValueError("give `scales` or `levels`, not both")
-    if levels is not None:
-        motions, levels = _stripes(motions, levels, measure, slenderness, size)
-    else:
-        motions, scales = _ensemble(motions, scales)
+    motions, scales, levels = _scaled(
+        motions, scales, levels, measure, slenderness, size
+    )
     im = _moving_measure(motions, measure, slenderness, size)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     return Fragility(
@@ -731,6 +726,19 @@ def fragility(
 # How each measure grows with a record's amplitude factor f: as f^power (None:
 # not at all).
 _POWERS = {"arias": 2.0, "d5_95": None, "tp": None, "frequency_ratio": None}
+
+
+def _scaled(motions, scales, levels, measure, slenderness, size):
+    """(the motions to analyse, scales, levels): every record scaled to each
+    of `levels` of `measure` (`_stripes`), or by each of `scales`
+    (`_ensemble`); the one not given is None."""
+    if levels is not None and scales is not None:
+        raise ValueError("give `scales` or `levels`, not both")
+    if levels is not None:
+        motions, levels = _stripes(motions, levels, measure, slenderness, size)
+        return motions, None, levels
+    motions, scales = _ensemble(motions, scales)
+    return motions, scales, None
 
 
 def _stripes(motions, levels, measure, slenderness, size):
@@ -791,11 +799,10 @@ def _fitted(bm, im, parsed) -> dict:
     max_rotation = bm.max_rotation.reshape(-1)
     max_u = bm.max_base_displacement.reshape(-1)
     exceeded = _exceeded(parsed, outcome, max_rotation, max_u)
-    fits = [
-        fit_lognormal(im[m], e[m])
-        for (kind, _), e in zip(parsed, exceeded.T)
-        for m in [ok_u if kind == "displacement" else ok]
-    ]
+    fits = []
+    for (kind, _), reached in zip(parsed, exceeded.T):
+        counted = ok_u if kind == "displacement" else ok
+        fits.append(fit_lognormal(im[counted], reached[counted]))
     fits = np.array(fits).reshape(-1, 2)
     return dict(
         im=np.asarray(im),

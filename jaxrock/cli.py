@@ -952,12 +952,10 @@ def _vertical(path, scale=1.0):
 
     import jaxrock as jr
 
-    record = jr.io.read_at2(path)
-    component = str(record.name).rsplit(",", 1)[-1].strip().upper()
-    sign = -1.0 if component in ("DWN", "DOWN") else 1.0
-    if sign * scale == 1.0:
+    record = jr.records.upward(jr.io.read_at2(path))
+    if scale == 1.0:
         return record
-    return jr.Record(sign * scale * np.asarray(record.samples), record.dt)
+    return jr.Record(scale * np.asarray(record.samples), record.dt)
 
 
 def _check_motion(a) -> None:

