@@ -11,7 +11,7 @@ the 95th and 99th percentiles and the largest |max rotation - reference|
 (a fraction of alpha), and the cells whose outcome differs. Run time is the
 best of --repeats runs after a first call (which compiles). Prints a
 Markdown table and writes benchmarks/results/record_precision.{json,md} and
-a chart, benchmarks/results/record_precision.png.
+a chart, docs/record_precision.png.
 
     python benchmarks/record_precision.py [--repeats 2] [--bases fixed,linear,fps]
         [--rtols 1e-6,1e-7,1e-8,1e-9]
@@ -125,7 +125,7 @@ def main():
         ax.set_ylabel("map run time (s)")
         ax.legend()
     fig.tight_layout()
-    fig.savefig(FOLDER / "record_precision.png", dpi=90)
+    fig.savefig(FOLDER.parents[1] / "docs" / "record_precision.png", dpi=90)
 
 
 if __name__ == "__main__":

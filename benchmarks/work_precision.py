@@ -211,7 +211,7 @@ def plots(rows, map_rows, out):
             ax.axhline(1e-6, color="gray", lw=0.5, ls="--")
     axes[0, 0].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "work_precision.png", dpi=90)
+    fig.savefig(ROOT / "docs" / "work_precision.png", dpi=90)
     fig, ax = plt.subplots(figsize=(5, 4))
     for key in ("fixed", "linear"):
         rs = [r for r in map_rows if r["base"] == key]
@@ -233,7 +233,7 @@ def plots(rows, map_rows, out):
     ax.set_ylabel("cells classified like the reference")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "work_precision_map.png", dpi=90)
+    fig.savefig(ROOT / "docs" / "work_precision_map.png", dpi=90)
     lines = [
         "| case | solver | rtol or step | time (s) | steps | max-rotation error "
         "| uplift error (s) | impacts ok |",
