@@ -1,11 +1,15 @@
-"""Where numerical methods fail, and how jaxrock detects it (issue #5)."""
+"""Where numerical methods fail, and how jaxrock detects it."""
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import reference as ref
+from scipy.optimize import brentq
 
 import jaxrock as jr
 from jaxrock import _simulate
+from jaxrock._misc import GRAVITY
 from jaxrock._solvers import RK4
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
@@ -187,3 +191,28 @@ def test_near_double_root_of_theta_dot_is_caught():
         assert bm.outcome[0, j] == theirs["outcome"] == jr.Outcome.OVERTURNED
         # Never a rotation past overturning in any cell.
         assert np.all(bm.max_rotation <= 0.5 * np.pi / np.arctan(1 / 6.0) + 1e-9)
+
+
+def test_block_at_rest_under_a_pulse_steps_to_its_uplift_by_the_level_bound():
+    """A block at rest on a fixed base: its steps end before |x_g''| could
+    reach g tan(alpha) (the pulse's curvature bound), with no other step
+    limit. Its uplift is where a dense search of |x_g''| finds it, a level
+    just above the peak never uplifts, and either takes fewer steps than
+    the pulse lasts in steps of `max_step`."""
+    pulse = jr.MPPulse(2.0, 1.5, 2.0, 90.0)
+    t = np.linspace(0.0, float(pulse.end_time), 400_001)
+    a = np.abs(np.asarray(jax.vmap(pulse.acceleration)(jnp.asarray(t))))
+    peak = a.max()
+    limit_steps = float(pulse.end_time / pulse.max_step)
+    for share in (0.97, 0.9995, 1.0005):
+        lam = GRAVITY / (share * peak)  # g tan(alpha) = share * peak
+        r = jr.simulate(jr.Block(lam, 1.0), jr.FixedBase(), pulse)
+        assert int(r.steps) < limit_steps
+        if share > 1:
+            assert int(r.outcome) == jr.Outcome.NO_ROCKING
+            continue
+        k = np.flatnonzero(a >= share * peak)[0]
+        root = brentq(
+            lambda s: abs(float(pulse.acceleration(s))) - share * peak, t[k - 1], t[k]
+        )
+        assert float(r.uplift_time) == pytest.approx(root, abs=1e-9)
