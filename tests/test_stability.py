@@ -216,3 +216,43 @@ def test_block_at_rest_under_a_pulse_steps_to_its_uplift_by_the_level_bound():
             lambda s: abs(float(pulse.acceleration(s))) - share * peak, t[k - 1], t[k]
         )
         assert float(r.uplift_time) == pytest.approx(root, abs=1e-9)
+
+
+@pytest.mark.parametrize("t, lifts", [(0.70, True), (0.50, False)])
+def test_a_block_that_settles_while_the_ground_lifts_it_uplifts_at_once(t, lifts):
+    """A block rising on its corner -b whose apex comes at theta <= 0 (a
+    rebound too small, the ground swinging the other way) settles on its
+    base. Where |x_g''| then reaches g tan(alpha) (at 0.70 s of the San
+    Fernando pulse, x_g'' = -2.18 m/s^2 against 1.53), it rocks on its
+    corner +b at once: its uplift conditions start at <= 0 there and would
+    never fire. Below the level (0.50 s, 0.98 m/s^2) it stays at rest."""
+    import diffrax
+    import equinox as eqx
+
+    from jaxrock._dynamics import Phase
+    from jaxrock._flat import _StepSolution
+    from jaxrock._model import initial_carry, transition
+    from jaxrock._results import SolverOptions
+    from jaxrock._scene import prepare
+
+    block, base, motion = jr.Block(6.4, 0.2), jr.FixedBase(), prepare(PULSE)
+    opts = SolverOptions.for_motion(PULSE, 1e-8, 1e-10, 100_000, 400, 1e-6, None)
+    level = GRAVITY / 6.4
+    assert (abs(float(PULSE.acceleration(t))) >= level) == lifts
+    c = initial_carry(block, base, motion)
+    c = eqx.tree_at(
+        lambda c: (c.t, c.phase, c.sign, c.rocked),
+        c,
+        (jnp.asarray(t - 1e-3), Phase.RISING, jnp.asarray(-1.0), jnp.asarray(True)),
+    )
+    y = (jnp.asarray(1e-12), jnp.asarray(0.0), None)  # the apex, -b theta < 0
+    fired = (jnp.asarray(False), jnp.asarray(True), jnp.asarray(False))
+    sol = _StepSolution(
+        jnp.asarray(t), y, diffrax.RESULTS.event_occurred, fired, jnp.asarray(1)
+    )
+    new = transition(c, sol, block, base, motion, 10.0, opts)
+    assert float(new.t) == t and float(new.y[0]) == 0.0
+    if lifts:
+        assert int(new.phase) == Phase.RISING and float(new.sign) == 1.0
+    else:
+        assert int(new.phase) == Phase.TRANSLATION
