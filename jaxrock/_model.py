@@ -113,11 +113,12 @@ class Carry(eqx.Module):
 def _uplift_now(t, y, phase, block, base, motion):
     """In translation with |u'' + x_g''| >= g tan(alpha): rocking starts at once.
 
-    Returns (uplift, sign). Applies at t = 0, where rocking ends (at an
-    impact, or where the block settles: an apex at or below theta = 0, as
-    the ground swings to lift it on its other corner) and where the base
-    meets its stop (whose dashpot's force jumps there). In each, the uplift
-    conditions would start at <= 0 and never fire.
+    Returns (uplift, sign). Applies at t = 0 and at the end of every
+    segment: where the block comes to rest (at an impact, or settling back
+    with an apex at or below theta = 0 as the ground swings to lift it on
+    its other corner) or the base meets its stop (whose dashpot's force
+    jumps), the uplift conditions would start the next segment at <= 0 and
+    never fire.
     """
     a_abs = absolute_base_acceleration(t, y[2], base, motion, in_stop(y[2], base))
     threshold = uplift_level(block, motion.gravity(t))
@@ -487,7 +488,6 @@ def _next_phase(c: Carry, ev: _Events, rest, t, y, block, base, motion):
     sign = jnp.where(ev.uplift, jnp.where(ev.towards_plus, 1.0, -1.0), c.sign)
     sign = jnp.where(ev.impact & ~rest, -c.sign, sign)
     again, again_sign = _uplift_now(t, y, phase, block, base, motion)
-    again = again & ((ev.impact & rest) | ev.settled | ev.stop)
     phase = jnp.where(again, Phase.RISING, phase)
     sign = jnp.where(again, again_sign, sign)
     return phase, sign, ev.uplift | again
