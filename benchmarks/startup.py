@@ -5,7 +5,8 @@ empty compilation cache (cold) and again with the cache the first run left
 Each run is a new Python process (the median of --repeats): `import
 jaxrock`; `jaxrock map` as in the README's quick start (the paper's San
 Fernando map, 61 x 40 cells on the fixed base and the linear isolator, and
-its picture); `jaxrock simulate --slenderness 4 --size 1` (one block on the
+its picture), and the same with its loops compiled at XLA's default level
+(not for a first answer); `jaxrock simulate --slenderness 4 --size 1` (one block on the
 linear isolator under the San Fernando pulse, its history and its plot);
 `simulate` of the same block without a history, from Python; maps of 11 x 8
 cells on each built-in base (fixed, linear isolator, friction pendulum)
@@ -60,8 +61,19 @@ bm = jr.behavior_map(np.linspace(2, 6, 11), np.linspace(0.2, 3, 8), base,
                      record, progress=False)
 print(bm.summary())
 """
+# `jaxrock map` with its loops compiled at XLA's default level, not for a
+# first answer (`_programs.first_answer`), as a larger map's are.
+MAP_AT_DEFAULT_LEVEL = """
+import sys
+from jaxrock import cli
+cli.FIRST_ANSWER_CELLS = 0
+sys.exit(cli.main(["map", "--out", sys.argv[1]]))
+"""
 CASES = {
     "jaxrock map": lambda out: ["-m", "jaxrock.cli", "map", "--out", out],
+    "jaxrock map, its loops at XLA's default level": lambda out: [
+        *["-c", MAP_AT_DEFAULT_LEVEL, out]
+    ],
     "jaxrock simulate (its plot included)": lambda out: [
         *["-m", "jaxrock.cli", "simulate", "--slenderness", "4", "--size", "1"],
         *["--out", out],
@@ -196,16 +208,18 @@ def split() -> dict:
     import numpy as np
 
     import jaxrock as jr
+    from jaxrock import _programs
 
     out = {"import_s": time.perf_counter() - t}
     start = time.time()  # the clock of the events
-    jr.behavior_map(
-        np.linspace(1.0, 7.0, 61),
-        np.linspace(0.1, 4.0, 40),
-        jr.FixedBase(),
-        jr.near_fault_pulse("San Fernando PCD/SN"),
-        progress=False,
-    )
+    with _programs.first_answer():  # as the CLI compiles it
+        jr.behavior_map(
+            np.linspace(1.0, 7.0, 61),
+            np.linspace(0.1, 4.0, 40),
+            jr.FixedBase(),
+            jr.near_fault_pulse("San Fernando PCD/SN"),
+            progress=False,
+        )
     out["map_s"] = time.time() - start
     return out | _phases(spans, kept, start, "map_chunk", out["map_s"])
 

@@ -1,6 +1,7 @@
 """Compiled chunk loops: made once per process and device, kept in jaxrock's
 cache folder between processes."""
 
+import contextlib
 import json
 import threading
 
@@ -21,6 +22,24 @@ _PROGRAMS_LOCK = threading.Lock()
 # Tracing and lowering are Python, under the GIL: maps in threads take turns,
 # and one traces while another compiles (XLA compiles without the GIL).
 _TRACING = threading.Lock()
+# Whether chunk loops compile for a first answer (`first_answer`).
+_FIRST_ANSWER = False
+
+
+@contextlib.contextmanager
+def first_answer():
+    """Within it, the chunk loops of maps on a base without a hysteretic
+    state compile on the CPU at XLA's backend optimization level 0: in about
+    half the time, to run 3-4 times as long (the docs' performance page,
+    "Start-up"). For small maps whose compile is most of the wait, as the
+    CLI's; the Python API keeps XLA's level. (A friction pendulum's loop
+    runs long enough that level 0 costs more than it saves.)"""
+    global _FIRST_ANSWER
+    before, _FIRST_ANSWER = _FIRST_ANSWER, True
+    try:
+        yield
+    finally:
+        _FIRST_ANSWER = before
 
 
 def chunk_program(treedef, leaves, loop: _layout.Loop):
@@ -39,20 +58,19 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
     specs = tuple(
         jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=x.sharding) for x in leaves
     )
-    key = (treedef, specs, loop)
+    task = jax.tree_util.tree_unflatten(treedef, specs)
+    options = compiler_options(task.base, task.layout, _FIRST_ANSWER)
+    key = (treedef, specs, loop, json.dumps(options))
     with _PROGRAMS_LOCK:
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
     with lock:
         if key not in _PROGRAMS:
-            _PROGRAMS[key] = _make_program(treedef, specs, loop)
+            _PROGRAMS[key] = _make_program(treedef, specs, loop, options)
         return _PROGRAMS[key]
 
 
-def _make_program(treedef, specs, loop: _layout.Loop):
+def _make_program(treedef, specs, loop: _layout.Loop, options: dict):
     """`chunk_program`'s function, compiled here or loaded from the folder."""
-
-    task = jax.tree_util.tree_unflatten(treedef, specs)
-    options = compiler_options(task.base, task.layout)
 
     def map_chunk_program(*leaves):
         task = jax.tree_util.tree_unflatten(treedef, leaves)
@@ -74,9 +92,11 @@ def _make_program(treedef, specs, loop: _layout.Loop):
     return _cache.compiled("map_chunk", key, lower)
 
 
-def compiler_options(base: AbstractIsolator, layout: MotionLayout) -> dict:
+def compiler_options(
+    base: AbstractIsolator, layout: MotionLayout, first_answer: bool = False
+) -> dict:
     """XLA's options for a chunk loop on `base` under a motion laid out as
-    `layout`.
+    `layout` (with `first_answer`: see `first_answer`).
 
     On the CPU, a loop under a closed-form motion on a base without a
     hysteretic state compiles with XLA's loop emitters instead of its fusion
@@ -87,7 +107,11 @@ def compiler_options(base: AbstractIsolator, layout: MotionLayout) -> dict:
     """
     if jax.default_backend() != "cpu":
         return {}
-    if layout is not MotionLayout.PER_CELL or base.hysteretic_state:
-        return {}
-    options = {"xla_cpu_use_fusion_emitters": False}
-    return options if compiler_accepts(options) else {}
+    options = {}
+    if first_answer and not base.hysteretic_state:
+        options["xla_backend_optimization_level"] = 0
+    if layout is MotionLayout.PER_CELL and not base.hysteretic_state:
+        options["xla_cpu_use_fusion_emitters"] = False
+    if not options or compiler_accepts(options):
+        return options
+    return {k: v for k, v in options.items() if compiler_accepts({k: v})}

@@ -27,6 +27,9 @@ OUT_SUFFIXES = (".png", ".pdf", ".svg")
 # Per axis: a million values already make a map of a trillion cells if both
 # axes take them; anything beyond is a typo, not a grid.
 MAX_POINTS = 1_000_000
+# `jaxrock map` compiles the loops of a map of at most this many cells (per
+# base) for a first answer (`_programs.first_answer`).
+FIRST_ANSWER_CELLS = 10_000
 _DEBUG = "JAXROCK_DEBUG"
 
 
@@ -1198,8 +1201,18 @@ def _run_map(a) -> int:
         )
 
     # The maps run at once, in threads: one traces its loop while another
-    # compiles, and compiles while another runs.
-    with _executor(a.scheduler) as executor, ThreadPoolExecutor(len(bases)) as pool:
+    # compiles, and compiles while another runs. A small map's compile is
+    # most of its wait: its loop compiles for a first answer.
+    from jaxrock import _programs
+
+    cells = a.slenderness.size * a.size.size * math.prod(motion.batch_shape)
+    small = a.scheduler is None and cells <= FIRST_ANSWER_CELLS
+    quick = _programs.first_answer() if small else contextlib.nullcontext()
+    with (
+        quick,
+        _executor(a.scheduler) as executor,
+        ThreadPoolExecutor(len(bases)) as pool,
+    ):
         maps = list(pool.map(behavior_map, bases))
     for bm in maps:
         print(bm.summary().replace(bm.motion, name))

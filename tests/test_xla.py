@@ -1,5 +1,6 @@
 """XLA's option that compiles a while loop as one kernel (`jaxrock._xla`)."""
 
+import contextlib
 import os
 import re
 import warnings
@@ -109,3 +110,47 @@ def test_compiler_options_this_xla_does_not_take_are_left_out(monkeypatch):
     }
     monkeypatch.setattr(_programs, "compiler_accepts", lambda options: False)
     assert _programs.compiler_options(base, layout) == {}
+
+
+def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
+    tmp_path, monkeypatch
+):
+    """Within `first_answer`, a fixed base's loop compiles at XLA's backend
+    optimization level 0 (a friction pendulum's keeps XLA's level): another
+    program than the default, giving the same map but for the last bits.
+    `jaxrock map` compiles a small map so; a larger one keeps the default."""
+    pulse, layout = jr.near_fault_pulse("San Fernando PCD/SN"), MotionLayout.PER_CELL
+    level = "xla_backend_optimization_level"
+    assert level not in _programs.compiler_options(jr.FixedBase(), layout)
+    assert _programs.compiler_options(jr.FixedBase(), layout, True)[level] == 0
+    fps = jr.FrictionPendulum(0.11, 2.24, 0.5)
+    assert level not in _programs.compiler_options(fps, layout, True)
+
+    lam, size = np.linspace(2.0, 6.0, 9), np.linspace(0.3, 3.0, 7)
+    default = jr.behavior_map(lam, size, jr.FixedBase(), pulse, progress=False)
+    before = set(_programs._PROGRAMS)
+    with _programs.first_answer():
+        quick = jr.behavior_map(lam, size, jr.FixedBase(), pulse, progress=False)
+    new = set(_programs._PROGRAMS) - before
+    assert new and all(f'"{level}": 0' in key[-1] for key in new)
+    assert not _programs._FIRST_ANSWER
+    np.testing.assert_array_equal(quick.outcome, default.outcome)
+    np.testing.assert_array_equal(quick.impacts, default.impacts)
+    np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
+
+    from jaxrock import cli
+
+    entered, first_answer = [], _programs.first_answer
+
+    @contextlib.contextmanager
+    def spy():
+        entered.append(_programs._FIRST_ANSWER)
+        with first_answer():
+            yield
+
+    monkeypatch.setattr(_programs, "first_answer", spy)
+    argv = ["map", "--base", "fixed", "--slenderness", "2:6:2", "--size", "0.5:2:2"]
+    argv += ["--out", str(tmp_path / "map.png")]
+    assert cli.main(argv) == 0 and entered == [False]
+    monkeypatch.setattr(cli, "FIRST_ANSWER_CELLS", 3)  # the map has 4 cells
+    assert cli.main(argv) == 0 and entered == [False]
