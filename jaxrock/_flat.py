@@ -421,7 +421,7 @@ def _locate(a: _Attempt, opts, unfired=()):
         return tuple(computed_once(jnp.stack([s, lower, upper, step])))
 
     # Unrolled where the conditions read a hysteretic force (a friction
-    # pendulum's z, costly): in a loop its record map ran 22% slower.
+    # pendulum's z, costly): its maps run faster so, at a longer compile.
     unroll = True if a.args.base.hysteretic_state else 1
     s, lower, upper, step = jax.lax.fori_loop(
         0, _NEWTON, iteration, (s, lower, upper, step), unroll=unroll
