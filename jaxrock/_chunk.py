@@ -115,7 +115,7 @@ def map_chunk(task: ChunkTask, loop: _layout.Loop):
         task.opts,
         task.pilot,
         task.layout,
-        loop.one_event_batch,
+        loop,
     )
     n, width = chunk.n, min(loop.lanes, chunk.n)
     # Every lane starts idle and finished: the loop's first `refill` gives
@@ -168,7 +168,7 @@ class _Chunk(eqx.Module):
     opts: SolverOptions
     pilot: jax.Array
     layout: MotionLayout = eqx.field(static=True)
-    one_event_batch: bool = eqx.field(static=True)
+    loop: _layout.Loop = eqx.field(static=True)
 
     @property
     def n(self) -> int:
@@ -249,7 +249,7 @@ class _Chunk(eqx.Module):
                 self.duration,
                 opts,
                 self.axes,
-                self.one_event_batch,
+                self.loop,
             )
             taken = new.steps - s.carry.steps
             ended = new.done | (new.segments >= opts.max_segments)

@@ -16,6 +16,8 @@ the others (an event, a segment's end) run the root find and `transition`,
 gathered in batches (`flat_step`).
 """
 
+import functools
+
 import diffrax
 import equinox as eqx
 import jax
@@ -26,6 +28,7 @@ from ._controller import KinkClip
 from ._dynamics import Args, Phase, rest_level, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._isolators import AbstractIsolator
+from ._layout import CPU_LOOP
 from ._misc import GRAVITY, computed_once, is_none, where_lanes
 from ._model import (
     Conditions,
@@ -367,7 +370,7 @@ def _dense_in_s(solver, a: "_Attempt"):
     return evaluate
 
 
-def _locate(a: _Attempt, opts, unfired=()):
+def _locate(a: _Attempt, opts, unfired=(), unrolled=True):
     """The event's time and state: bracketed Newton on [t0, t1] (the condition is
     > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
 
@@ -383,7 +386,8 @@ def _locate(a: _Attempt, opts, unfired=()):
     for Tsit5), `_NEWTON` iterations in a loop (a lane stops moving once
     converged). Unrolled, they ran no faster under a record on a fixed base
     or a linear isolator, and made the first map about 20% slower to start
-    (compiling).
+    (compiling); with `unrolled` they are unrolled on a base with a
+    hysteretic state (`_layout.Loop.newton_unrolled`).
     """
     conditions = jax.tree_util.tree_leaves(
         event_conditions(a.args.block, a.args.base, a.args.motion)
@@ -420,9 +424,10 @@ def _locate(a: _Attempt, opts, unfired=()):
         # XLA recomputes earlier iterations inside later ones).
         return tuple(computed_once(jnp.stack([s, lower, upper, step])))
 
-    # Unrolled where the conditions read a hysteretic force (a friction
-    # pendulum's z, costly): its maps run faster so, at a longer compile.
-    unroll = True if a.args.base.hysteretic_state else 1
+    # Unrolled (`unrolled`) where the conditions read a hysteretic force (a
+    # friction pendulum's z, costly): its maps run faster so, at a longer
+    # compile.
+    unroll = True if unrolled and a.args.base.hysteretic_state else 1
     s, lower, upper, step = jax.lax.fori_loop(
         0, _NEWTON, iteration, (s, lower, upper, step), unroll=unroll
     )
@@ -607,7 +612,7 @@ class _ForceFree(AbstractIsolator):
         return self.base.free_vibration_bounds(state)
 
 
-def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
+def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes, unrolled):
     """`_locate` on a batch of lanes (leading axis; `valid`: real lanes).
 
     `sub.args.motion` is None: the lanes' motion is `motion`, batched as
@@ -630,7 +635,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
     def locate(sub, motion, axes, unfired=()):
         def one(a, motion):
             a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=is_none)
-            return _locate(a, opts, unfired)
+            return _locate(a, opts, unfired, unrolled)
 
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
@@ -707,11 +712,14 @@ def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration):
     )
 
 
-def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts):
+def _end_lanes(
+    sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts, unrolled
+):
     """The new carries of a batch of lanes whose step does not only move on
     (`valid`: real lanes; `motion` batched as `motion_axes` says): their
-    events located, jumps, transitions, and next steps."""
-    located = _locate_batch(sub, valid, opts, motion, motion_axes)
+    events located (`unrolled`: see `_locate`), jumps, transitions, and next
+    steps."""
+    located = _locate_batch(sub, valid, opts, motion, motion_axes, unrolled)
     block, base = sub.args.block, sub.args.base
     jump = _rest_jumps(sub_c, sub, valid, motion, motion_axes, duration)
     new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
@@ -734,7 +742,7 @@ def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts)
     return jax.vmap(_look_ahead)(sub, located, new)
 
 
-def flat_step(c, block, base, motion, duration, opts, in_axes, one_batch=False):
+def flat_step(c, block, base, motion, duration, opts, in_axes, loop=CPU_LOOP):
     """One step attempt of every lane (leading axis); returns the new carries
     and the attempts (`_Attempt`, before their events were located).
 
@@ -743,10 +751,10 @@ def flat_step(c, block, base, motion, duration, opts, in_axes, one_batch=False):
     (`_moved`, elementwise). The others (an event, a segment's end, a
     failure, a search for a jump) are gathered in batches (`_batch_size`), in
     which the root find and `transition` run (`_end_lanes`; in most
-    iterations a few lanes: one batch, and none without). With `one_batch`
-    (on a GPU: each pass of a loop costs a round trip to the host, and
-    thousands of lanes end in every step) the batch is every lane, each one
-    kept or replaced as it ends or not.
+    iterations a few lanes: one batch, and none without). With
+    `loop.one_event_batch` (on a GPU: each pass of a loop costs a round trip
+    to the host, and thousands of lanes end in every step) the batch is every
+    lane, each one kept or replaced as it ends or not.
     """
     lanes = c.t.shape[0]
     a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
@@ -759,10 +767,13 @@ def flat_step(c, block, base, motion, duration, opts, in_axes, one_batch=False):
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
-    if one_batch:
+    end_lanes = functools.partial(
+        _end_lanes, duration=duration, opts=opts, unrolled=loop.newton_unrolled
+    )
+    if loop.one_event_batch:
         ended = jax.lax.cond(
             jnp.any(ends),
-            lambda: _end_lanes(c, lanes_a, ends, motion, motion_axes, duration, opts),
+            lambda: end_lanes(c, lanes_a, ends, motion, motion_axes),
             lambda: new,
         )
         return where_lanes(ends, ended, new), a
@@ -779,9 +790,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes, one_batch=False):
         index = jnp.minimum(take, lanes - 1)
         sub, sub_c = jax.tree_util.tree_map(lambda x: x[index], (lanes_a, c))
         sub_motion = _take_lanes(motion, motion_axes, index)
-        ended = _end_lanes(
-            sub_c, sub, take < lanes, sub_motion, motion_axes, duration, opts
-        )
+        ended = end_lanes(sub_c, sub, take < lanes, sub_motion, motion_axes)
         done = jax.tree_util.tree_map(
             lambda d, x: jax.lax.dynamic_update_index_in_dim(d, x, j, 0), done, ended
         )

@@ -28,12 +28,16 @@ _FIRST_ANSWER = False
 
 @contextlib.contextmanager
 def first_answer():
-    """Within it, the chunk loops of maps on a base without a hysteretic
-    state compile on the CPU at XLA's backend optimization level 0: in about
-    half the time, to run 3-4 times as long (the docs' performance page,
-    "Start-up"). For small maps whose compile is most of the wait, as the
-    CLI's; the Python API keeps XLA's level. (A friction pendulum's loop
-    runs long enough that level 0 costs more than it saves.)"""
+    """Within it, maps' chunk loops compile for a first answer: small maps
+    whose compile is most of the wait, as the CLI's (the Python API keeps the
+    defaults).
+
+    On a base without a hysteretic state they compile on the CPU at XLA's
+    backend optimization level 0: in about half the time, to run 3-4 times
+    as long (the docs' performance page, "Start-up"). A friction pendulum's
+    loop runs long enough that level 0 would cost more than it saves; it
+    keeps XLA's level, with the Newton iterations of its events in a loop
+    rather than unrolled (`_layout.Loop.newton_unrolled`)."""
     global _FIRST_ANSWER
     before, _FIRST_ANSWER = _FIRST_ANSWER, True
     try:
@@ -60,6 +64,8 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
     )
     task = jax.tree_util.tree_unflatten(treedef, specs)
     options = compiler_options(task.base, task.layout, _FIRST_ANSWER)
+    if _FIRST_ANSWER:
+        loop = loop._replace(newton_unrolled=False)
     key = (treedef, specs, loop, json.dumps(options))
     with _PROGRAMS_LOCK:
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())

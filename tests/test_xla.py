@@ -116,8 +116,9 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     tmp_path, monkeypatch
 ):
     """Within `first_answer`, a fixed base's loop compiles at XLA's backend
-    optimization level 0 (a friction pendulum's keeps XLA's level): another
-    program than the default, giving the same map but for the last bits.
+    optimization level 0 (a friction pendulum's keeps XLA's level, its
+    events' Newton iterations not unrolled): another program than the
+    default, giving the same map (but for the last bits at level 0).
     `jaxrock map` compiles a small map so; a larger one keeps the default."""
     pulse, layout = jr.near_fault_pulse("San Fernando PCD/SN"), MotionLayout.PER_CELL
     level = "xla_backend_optimization_level"
@@ -137,6 +138,18 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     np.testing.assert_array_equal(quick.outcome, default.outcome)
     np.testing.assert_array_equal(quick.impacts, default.impacts)
     np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
+
+    # A friction pendulum's loop keeps XLA's level, its Newton iterations in
+    # a loop: the same map to the bit.
+    lam, size = np.linspace(2.0, 6.0, 3), np.array([0.5, 2.0])
+    default = jr.behavior_map(lam, size, fps, pulse, progress=False)
+    before = set(_programs._PROGRAMS)
+    with _programs.first_answer():
+        quick = jr.behavior_map(lam, size, fps, pulse, progress=False)
+    (key,) = set(_programs._PROGRAMS) - before
+    assert not key[2].newton_unrolled and level not in key[-1]
+    for k in jr._maps._FIELDS:
+        np.testing.assert_array_equal(getattr(quick, k), getattr(default, k), k)
 
     from jaxrock import cli
 
