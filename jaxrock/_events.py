@@ -84,21 +84,35 @@ def condition_rate(t, y, args: Args, **kwargs):
     )
 
 
-def quiet(y, args: Args):
-    """<= 0 when nothing can happen any more: ground still, block in translation,
-    and the base's energy too low to uplift it or to raise max |u|."""
+def _free_vibration_margins(y, args: Args):
+    """(bound of |u| - max |u| so far, bound of |F / M| - the block's rest
+    level) over the base's free vibration from `y`, where they hold: ground
+    still and block in translation (else (1, 1)). Each is <= 0 where the
+    base's energy is too low to raise max |u|, or to uplift the block."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
     if args.base.stop is not None:  # a base that may reach its stop: no bound
         f_bound = jnp.where(u_bound >= args.base.capacity, jnp.inf, f_bound)
-    value = jnp.maximum(
-        u_bound - args.max_base_displacement,
-        f_bound - rest_level(args.block, args.slid),
-    )
     # Armed per segment (not by t >= end_time inside one): a condition that jumped
     # within a segment would be "located" at the jump, with a meaningless
     # derivative.
     armed = (args.phase == Phase.TRANSLATION) & args.ground_still
-    return jnp.where(armed, value, 1.0)
+    return (
+        jnp.where(armed, u_bound - args.max_base_displacement, 1.0),
+        jnp.where(armed, f_bound - rest_level(args.block, args.slid), 1.0),
+    )
+
+
+def quiet(y, args: Args):
+    """<= 0 when nothing can happen any more: ground still, block in translation,
+    and the base's energy too low to uplift it or to raise max |u|."""
+    return jnp.maximum(*_free_vibration_margins(y, args))
+
+
+def never_uplifts(y, args: Args):
+    """Whether the block can never uplift again (nor overturn): ground still,
+    block in translation, and the base's energy too low to uplift it, though
+    the base may still move (and raise max |u|, within its bound)."""
+    return _free_vibration_margins(y, args)[1] <= 0
 
 
 def condition_quiet(t, y, args: Args, **kwargs):

@@ -45,6 +45,7 @@ from ._events import (
     condition_rate,
     condition_slide,
     condition_stop,
+    never_uplifts,
     quiet,
 )
 from ._ground import AbstractGroundMotion
@@ -555,8 +556,11 @@ def _advance(
     steps = sol.stats["num_steps"]
     over = end.reached_end & ~end.event & (t >= duration)
     # Run until decided (`SolverOptions.until_decided`), the window's end
-    # leaves the fate open unless the block can no longer overturn.
+    # leaves the fate open unless the block can no longer overturn: also where
+    # the base still moves, too weakly to lift it (its max |u| may still rise
+    # within its bound, as after any window).
     open_fate = can_overturn(phase, sign, y, block, base) & ~still & ~ev.overturn
+    open_fate = open_fate & ~never_uplifts(y, args)
     undecided = over & opts.until_decided & open_fate
     # Free flight where its condition fired, or where g_eff is <= 0 after the
     # event (an uplift located where g_eff, and with it the uplift level,

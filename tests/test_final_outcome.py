@@ -80,3 +80,25 @@ def test_a_fate_still_open_at_the_limit_is_undecided(monkeypatch):
     later = jr.simulate(slender, jr.FixedBase(), pulse, duration=end + 60.0)
     assert fixed.outcome == jr.Outcome.ROCKING and fixed.ok
     assert int(later.impacts) > int(fixed.impacts)  # rocking at the limit
+
+
+@pytest.mark.parametrize(
+    "base",
+    [jr.LinearIsolator(2.0, 0.0, 0.5), jr.FrictionPendulum(0.11, 2.24, 0.5)],
+    ids=["undamped linear", "friction pendulum"],
+)
+def test_a_block_its_base_can_no_longer_lift_is_decided(base):
+    """A block at rest on a base that still moves once the ground is still,
+    too weakly ever to lift it, is decided: SUCCESS at the window's end, not
+    UNDECIDED. Under a record of zeros, and under a weak pulse that leaves an
+    undamped isolator swinging for ever (and a friction pendulum's base
+    oscillating on its Bouc-Wen stiffness)."""
+    zeros = jr.Record(np.zeros(200), 0.01)
+    weak = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.01)
+    block = jr.Block(4.0, 1.0)
+    for motion in (zeros, weak):
+        r = jr.simulate(block, base, motion)
+        assert r.status == jr.Status.SUCCESS and r.outcome == jr.Outcome.NO_ROCKING
+    bm = jr.behavior_map([2.0, 4.0], [0.5, 1.0], base, zeros, progress=False)
+    assert np.all(bm.status == jr.Status.SUCCESS) and bm.counts()["undecided"] == 0
+    assert np.all(bm.max_base_displacement == 0.0)
