@@ -3,7 +3,7 @@ and Eurocode 8 (EN 1998-1, Sec. 3.2.2.2, types 1 and 2)."""
 
 import numpy as np
 
-from ._response_spectrum import check_periods
+from ._misc import grid_axis, positive
 
 # EN 1998-1 Tables 3.2 (type 1) and 3.3 (type 2): S, T_B, T_C, T_D (s) by
 # ground type.
@@ -23,6 +23,14 @@ _EUROCODE8 = {
         "E": (1.6, 0.05, 0.25, 1.2),
     },
 }
+
+
+def _check_periods(periods) -> np.ndarray:
+    """`periods` as a 1-D float array of finite values > 0 (`ValueError`):
+    the closed forms hold at any period."""
+    periods = grid_axis("periods", periods)
+    positive("periods", periods)
+    return periods
 
 
 def _number(name: str, value, low=0.0) -> float:
@@ -64,7 +72,7 @@ def asce7_spectrum(periods, sds: float, sd1: float, tl: float) -> np.ndarray:
         >>> jr.asce7_spectrum([0.0001, 0.2, 1.0, 2.0, 16.0], sds=1.0, sd1=0.6, tl=8.0)
         array([0.4005 , 1.     , 0.6    , 0.3    , 0.01875])
     """
-    periods = check_periods(periods)
+    periods = _check_periods(periods)
     sds, sd1, tl = _number("sds", sds), _number("sd1", sd1), _number("tl", tl)
     t0, ts = 0.2 * sd1 / sds, sd1 / sds
     if tl <= ts:
@@ -117,7 +125,7 @@ def eurocode8_spectrum(
         >>> jr.eurocode8_spectrum([0.1, 0.3, 1.0, 4.0], ag=2.0, ground_type="C")
         array([4.025  , 5.75   , 3.45   , 0.43125])
     """
-    periods = check_periods(periods)
+    periods = _check_periods(periods)
     ag = _number("ag", ag)
     if spectrum_type not in _EUROCODE8:
         raise ValueError(f"`spectrum_type` must be 1 or 2, got {spectrum_type!r}")

@@ -107,7 +107,7 @@ def floor_motion(
 
     Args:
         motion: a `Record`, a suite, a scaled record, or a pulse.
-        periods: T_n (s), finite and > 0: a number (one mode) or one per mode.
+        periods: T_n (s), in [0.001, 100] s: a number (one mode) or one per mode.
         damping: zeta_n, >= 0 and < 1: a number for every mode or one per mode;
             default 0.05.
         participation: P_n (-), finite: a number for every mode or one per

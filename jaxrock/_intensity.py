@@ -9,6 +9,7 @@ from ._ground import AbstractGroundMotion, MPPulse, SinePulse
 from ._misc import GRAVITY, positive
 from ._record import Record
 from ._response_spectrum import (
+    PERIOD_RANGE,
     check_periods,
     motion_samples,
     response_spectrum,
@@ -55,7 +56,7 @@ def parse_measure(measure) -> tuple[str, float | None]:
     `ValueError` naming `measure` for anything else."""
     allowed = (
         f"`measure` must be one of {', '.join(m for m in MEASURES if m != 'sa:T')} "
-        "or 'sa:T' (Sa at period T s, > 0)"
+        "or 'sa:T' (Sa at period T s, in [0.001, 100])"
     )
     if not isinstance(measure, str):
         raise ValueError(f"{allowed}, got {measure!r}")
@@ -64,7 +65,8 @@ def parse_measure(measure) -> tuple[str, float | None]:
             period = float(measure[3:])
         except ValueError:
             raise ValueError(f"{allowed}, got {measure!r}") from None
-        if not (np.isfinite(period) and period > 0):
+        low, high = PERIOD_RANGE
+        if not (np.isfinite(period) and low <= period <= high):
             raise ValueError(f"{allowed}, got {measure!r}")
         return "sa", period
     if measure not in _ATTRS:
@@ -213,7 +215,7 @@ def intensity_measure(
         The measure of each motion of the batch, shape `motion.batch_shape`.
 
     Raises:
-        ValueError: an unknown measure or a period that is not > 0, a block's
+        ValueError: an unknown measure or a period outside [0.001, 100] s, a block's
             measure without the block, or "frequency_ratio" of a record.
 
     Examples:

@@ -281,7 +281,7 @@ class Record(AbstractGroundMotion):
     ) -> "Record":
         """The record or suite scaled to a target spectrum over a period range.
 
-        `periods` (s, finite and > 0) sample the range, `target` gives the
+        `periods` (s, in [0.001, 100]) sample the range, `target` gives the
         target's pseudo-spectral acceleration there (m/s^2, > 0; e.g.
         `9.81 * jr.asce7_spectrum(periods, ...)`), `damping` the spectra's.
         With `each` (the default) every record gets the factor that fits its

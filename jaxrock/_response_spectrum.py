@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._ground import AbstractGroundMotion
-from ._misc import check, grid_axis, positive
+from ._misc import check, grid_axis
 from ._record import Record
 
 # A closed-form pulse is sampled every min(_PULSE_STEP, shortest period /
@@ -20,6 +20,11 @@ _PULSE_POINTS = 50
 # omega h <= 1 integrate them to rounding.
 _NODES = 16
 _PANEL = 1.0
+# The periods of a spectrum (s): from 1 ms (far stiffer than any structure or
+# object: the oscillator follows the ground, Sa = PGA) to 100 s. Shorter ones
+# need omega h / _PANEL quadrature panels per record step (memory), longer
+# ones a tail of one period after the motion.
+PERIOD_RANGE = (1e-3, 100.0)
 
 
 class MotionSamples(eqx.Module):
@@ -187,10 +192,12 @@ def spectral_displacements(samples: MotionSamples, periods, damping):
     )
 
 
-def check_periods(periods) -> np.ndarray:
-    """`periods` as a 1-D float array of finite values > 0 (`ValueError`)."""
-    periods = grid_axis("periods", periods)
-    positive("periods", periods)
+def check_periods(periods, name: str = "periods") -> np.ndarray:
+    """`periods` as a 1-D float array of finite values in `PERIOD_RANGE`
+    (`ValueError` naming `name`)."""
+    periods = grid_axis(name, periods)
+    low, high = PERIOD_RANGE
+    check(name, periods, lambda v: (v >= low) & (v <= high), f"in [{low}, {high}] s")
     return periods
 
 
@@ -256,7 +263,7 @@ def response_spectrum(
     Args:
         motion: a `Record`, a suite (`Record.stack`), a scaled record or
             suite, or a pulse (`MPPulse`, `SinePulse`, batched or not).
-        periods: the oscillator periods T (s), finite and > 0; a number or
+        periods: the oscillator periods T (s), in [0.001, 100] s; a number or
             a 1-D array.
         damping: the damping ratio zeta, >= 0 and < 1; default 0.05.
 
@@ -264,7 +271,7 @@ def response_spectrum(
         A `ResponseSpectrum` with arrays of shape (*motion.batch_shape, P).
 
     Raises:
-        ValueError: periods not finite and > 0, a damping outside [0, 1), or
+        ValueError: periods outside [0.001, 100] s, a damping outside [0, 1), or
             a `motion` that is not a ground motion (checked before any
             compile).
 
@@ -338,7 +345,7 @@ def rotd50(
     Args:
         first, second: the two components (`Record`s, not batched, of one
             time step; scaled records allowed).
-        periods: the oscillator periods T (s), finite and > 0.
+        periods: the oscillator periods T (s), in [0.001, 100] s.
         damping: the damping ratio zeta, >= 0 and < 1; default 0.05.
 
     Returns:
@@ -347,7 +354,7 @@ def rotd50(
 
     Raises:
         ValueError: components that are not single records of one time
-            step, periods not finite and > 0, or a damping outside [0, 1)
+            step, periods outside [0.001, 100] s, or a damping outside [0, 1)
             (before any compile).
 
     Examples:

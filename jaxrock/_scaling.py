@@ -4,7 +4,7 @@ range (`Record.scaled_to`, `Record.scaled_to_spectrum`)."""
 
 import numpy as np
 
-from ._response_spectrum import check_periods, response_spectrum
+from ._response_spectrum import PERIOD_RANGE, check_periods, response_spectrum
 
 
 def factor_to(record, *, pga=None, pgv=None, sa=None) -> np.ndarray:
@@ -21,9 +21,11 @@ def factor_to(record, *, pga=None, pgv=None, sa=None) -> np.ndarray:
         if not (isinstance(sa, (tuple, list)) and len(sa) == 2):
             raise ValueError(f"`sa` must be (period in s, Sa in m/s^2), got {sa!r}")
         period = np.asarray(sa[0], dtype=float)
-        if period.ndim or not (np.isfinite(period) and period > 0):
+        low, high = PERIOD_RANGE
+        if period.ndim or not (np.isfinite(period) and low <= period <= high):
             raise ValueError(
-                f"`sa`'s period must be one number, finite and > 0 (s), got {sa[0]!r}"
+                f"`sa`'s period must be one number in [{low}, {high}] (s), "
+                f"got {sa[0]!r}"
             )
         target = sa[1]
     else:

@@ -34,7 +34,7 @@ from ._events import EVENT_ATOL, EVENT_RTOL, BracketedNewton
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import one_real_number, positive
+from ._misc import check, one_real_number
 from ._model import (
     Carry,
     check_base_and_motion,
@@ -57,6 +57,9 @@ from ._results import (
 )
 from ._scene import closed_form_tail, prepare
 from ._xla import compiler_accepts
+
+# The most samples of a history (`simulate(..., history=True)`).
+MAX_HISTORY_SAMPLES = 10_000_000
 
 
 class _FirstStep(diffrax.AbstractAdaptiveStepSizeController):
@@ -513,9 +516,9 @@ def simulate(
         history: also return the time histories (`Response.history`), from
             one compiled program for the analysis and its history (concrete
             inputs only: not under `jit`, `vmap` or `jacfwd`).
-        history_step: spacing of the history's samples (s), one number > 0;
-            every event is recorded as well. Default: duration / 2000, at
-            most 0.01 s.
+        history_step: spacing of the history's samples (s), one number of
+            at least the window / 10,000,000; every event is recorded as
+            well. Default: duration / 2000, at most 0.01 s.
         max_steps: the solver's step limit in one segment; default 16384,
             raised for long records to 4 steps a sample (a guard against
             runaway solves that a valid record never reaches).
@@ -559,7 +562,14 @@ def simulate(
     if history_step is None:
         history_step = min(float(duration) / 2000.0, 0.01)
     history_step = one_real_number("history_step", history_step, "finite and > 0 (s)")
-    positive("history_step", history_step)
+    # The history's rows are kept in memory (about 100 bytes each).
+    shortest = float(duration) / MAX_HISTORY_SAMPLES
+    check(
+        "history_step",
+        history_step,
+        lambda v: v >= shortest,
+        f">= the window / {MAX_HISTORY_SAMPLES:,} ({shortest:.3g} s)",
+    )
     result, hist = _history(block, base, motion, duration, opts, history_step)
     return eqx.tree_at(lambda r: r.history, result, hist, is_leaf=lambda x: x is None)
 

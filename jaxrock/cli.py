@@ -671,7 +671,8 @@ def _add_response_spectrum(sub) -> None:
         "--periods",
         type=_periods,
         default="0.05:5:100",
-        help="oscillator periods (s), START:STOP:N, evenly on a log scale",
+        help="oscillator periods (s) in [0.001, 100], START:STOP:N, evenly on "
+        "a log scale",
     )
     r.add_argument("--damping", type=_damping, default=0.05, help="zeta, damping ratio")
     r.add_argument(

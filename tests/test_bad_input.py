@@ -183,6 +183,21 @@ def test_bad_values_name_the_parameter(make, message):
             ),
             "`history_step`",
         ),
+        (  # ten billion rows: named before any memory is taken
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0),
+                jr.FixedBase(),
+                PULSE,
+                history=True,
+                history_step=1e-9,
+            ),
+            r"`history_step` must be >= the window / 10,000,000",
+        ),
+        # Spectra's periods: shorter ones take memory as 1 / T, longer a tail.
+        (lambda: jr.response_spectrum(PULSE, [1e-9, 1.0]), r"`periods`.*0\.001, 100"),
+        (lambda: jr.response_spectrum(PULSE, 1e3), r"`periods` must be in"),
+        (lambda: jr.intensity_measure(PULSE, "sa:1e-9"), r"`measure`.*0\.001, 100"),
+        (lambda: jr.intensity_measure(PULSE, "sa:1e9"), r"`measure`"),
         (
             lambda: jr.overturning_spectrum(
                 jr.Block(3.0, 1.0), jr.FixedBase(), [], [1.0]
