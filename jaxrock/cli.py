@@ -1078,6 +1078,18 @@ def _executor(scheduler: str | None):
         yield client.get_executor()
 
 
+def _not_counted(status, why: str) -> str:
+    """ ", 2 UNDECIDED, 1 SLIDING (`why`)": the analyses whose status is not
+    SUCCESS, by status ("" if none)."""
+    import numpy as np
+
+    from jaxrock import Status
+
+    codes, counts = np.unique(np.asarray(status), return_counts=True)
+    parts = [f"{n} {Status(c).name}" for c, n in zip(codes, counts) if c != 0]
+    return f", {', '.join(parts)} ({why})" if parts else ""
+
+
 def _run_spectrum(a) -> int:
     out = _check_out(a.out)
     _use_agg()
@@ -1096,6 +1108,7 @@ def _run_spectrum(a) -> int:
         print(
             f"{s.base}: minimum a_p / (g tan alpha) = "
             + " ".join(f"{m:.3g}" for m in s.minimum)
+            + _not_counted(s.status, "not counted")
         )
     _save(plot.overturning_spectrum(spectra).figure, out)
     return 0
@@ -1156,11 +1169,10 @@ def _run_fragility(a) -> int:
         restitution_factor=a.restitution_factor,
         friction=a.block_friction,
     )
-    sliding = int((frag.status == jr.Status.SLIDING).sum())
     print(
         f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
         f"{int(frag.overturned.sum())} overturned"
-        + (f", {sliding} sliding (not fitted)" if sliding else "")
+        + _not_counted(frag.status, "not fitted")
         + f"; median {a.measure} "
         f"to overturn {frag.median_overturning:.4g} "
         f"(beta {frag.beta_overturning:.3g})"

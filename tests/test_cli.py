@@ -420,6 +420,18 @@ def test_cli_fragility_of_one_scale(tmp_path, capsys):
     assert "1 analyses" in capsys.readouterr().out
 
 
+def test_cli_fragility_names_the_analyses_it_does_not_fit(tmp_path, capsys):
+    """An analysis that ends with another status than SUCCESS is left out of
+    the fits, and the summary says how many, by status."""
+    out = tmp_path / "f.png"
+    argv = ["fragility", "--base", "linear", "--capacity", "0.001"]
+    assert main(argv + ["--scales", "1:1:1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert (
+        "1 analyses: 1 rocked, 1 overturned, 1 CAPACITY_EXCEEDED (not fitted)" in text
+    )
+
+
 def test_cli_spectrum(tmp_path, capsys):
     out = tmp_path / "s.png"
     assert (
