@@ -192,8 +192,15 @@ def _mode2_margin(psi, w, samples=1001):
     a = k / psi - 1.0
     b = k * w * np.cos(w * tu)
     tau = np.linspace(0.0, 1.0, samples)[1:, None] * (2 * np.pi / w - tu)
-    phi = 1.0 - k * np.sin(w * (tau + tu)) + a * np.cosh(tau) + b * np.sinh(tau)
-    return (a + b) * np.exp(2 * np.pi / w - tu) - k * w, phi.min(axis=0)
+    # a cosh + b sinh as exponentials: on a long pulse (small w) e^tau
+    # overflows to the sign of a + b, where cosh - sinh would give inf - inf.
+    with np.errstate(over="ignore", invalid="ignore"):
+        grow = np.where(a + b == 0.0, 0.0, 0.5 * (a + b) * np.exp(tau))
+        phi = 1.0 - k * np.sin(w * (tau + tu)) + grow + 0.5 * (a - b) * np.exp(-tau)
+        margin = np.where(
+            a + b == 0.0, -k * w, (a + b) * np.exp(2 * np.pi / w - tu) - k * w
+        )
+    return margin, phi.min(axis=0)
 
 
 def linearized_overturning_amplitude(frequency_ratio) -> np.ndarray:

@@ -301,7 +301,13 @@ def read_at2(path: str | os.PathLike) -> Record:
     npts, dt = _npts_and_dt(match, where)
     values = _samples(lines[i + 1 :], i + 2, name)
     _check_count(values, npts, name, i + 1)
-    return Record(values * factor, dt, **at2_labels(lines[:i], name))
+    with np.errstate(over="ignore"):
+        values = values * factor
+    if not np.all(np.isfinite(values)):
+        raise ValueError(
+            f"{name!r}: its samples overflow in m/s^2 (at most about 1.8e308)"
+        )
+    return Record(values, dt, **at2_labels(lines[:i], name))
 
 
 def at2_labels(header: list[str], name: str) -> dict:

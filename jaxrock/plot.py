@@ -270,7 +270,9 @@ def response_spectrum(spectra, labels=None, ax=None):
     for (periods, psa, _), label in zip(curves, labels):
         ax.plot(periods, psa, label=label)
     ax.set_xscale("log")
-    ax.set_yscale("log")
+    # A log scale needs a positive value (a record of zeros has none).
+    if any(np.any(psa > 0) for _, psa, _ in curves):
+        ax.set_yscale("log")
     ax.set_xlabel("period T (s)")
     ax.set_ylabel(f"PSA (m/s^2), {spectra[0].damping:.0%} damping")
     if any(label is not None for label in labels):

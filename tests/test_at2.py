@@ -56,6 +56,12 @@ def test_read_at2_count_mismatch(tmp_path):
         jr.io.read_at2(_write(tmp_path, HEADERS["comma"], VALUES[:7]))
 
 
+def test_samples_that_overflow_in_m_s2_are_named(tmp_path):
+    path = _write(tmp_path, HEADERS["comma"], [1e308] * 8, name="huge.AT2")
+    with pytest.raises(ValueError, match=_error(path, "overflow in m/s^2")):
+        jr.io.read_at2(path)
+
+
 def test_read_at2_malformed(tmp_path):
     path = tmp_path / "bad.AT2"
     path.write_text("not an accelerogram\n1 2 3\n")

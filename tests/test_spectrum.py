@@ -1,6 +1,7 @@
 """Overturning spectra under one-sine pulses, checked against the SciPy reference."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -84,3 +85,12 @@ def test_no_impact_edge_tends_to_linearized_closed_form():
     no_impact = (bm.outcome == jr.Outcome.OVERTURNED) & (bm.impacts == 0)
     assert np.all(bm.status == jr.Status.SUCCESS)
     assert np.array_equal(no_impact.reshape(4, 2), np.tile([False, True], (4, 1)))
+
+
+def test_the_linearized_amplitude_of_a_long_pulse_does_not_overflow():
+    """For slow pulses (omega_p / p down to 0.005) the closed form's e^tau
+    overflows: the amplitude stays finite, just above 1, and warns nothing."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        psi = jr.linearized_overturning_amplitude(np.array([0.005, 0.05, 0.5]))
+    assert np.all(np.isfinite(psi)) and 1.0 < psi[0] <= psi[1] < psi[2]
