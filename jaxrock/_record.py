@@ -41,6 +41,31 @@ def _labels(value, n):
     return (value,) * n
 
 
+# The names PEER gives a vertical component at the end of a record's name.
+VERTICAL_COMPONENTS = {"UP", "DWN", "DOWN", "V", "VER", "VERT"}
+
+
+def component(record: "Record") -> str:
+    """The component at the end of a record's name (its header's second
+    line: event, date, station, component), in capitals ("" if none)."""
+    return str(record.name or "").rsplit(",", 1)[-1].strip().upper()
+
+
+def is_vertical(record: "Record") -> bool:
+    """Whether a record's name ends with a vertical component: its last
+    comma-separated part is one of UP, DWN, DOWN, V, VER or VERT (any case),
+    as the second header line of a PEER NGA file names it.
+
+    Examples:
+        >>> import numpy as np, jaxrock as jr
+        >>> down = jr.Record(np.zeros(3), 0.01, name="Pacoima Dam, DWN")
+        >>> east = jr.Record(np.zeros(3), 0.01, name="Pacoima Dam, 254")
+        >>> jr.records.is_vertical(down), jr.records.is_vertical(east)
+        (True, False)
+    """
+    return component(record) in VERTICAL_COMPONENTS
+
+
 class Record(AbstractGroundMotion):
     """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s),
     from 1e-6 to 1 s.

@@ -8,7 +8,7 @@ import numpy as np
 
 from ._ground import AbstractGroundMotion
 from ._misc import check, grid_axis
-from ._record import Record
+from ._record import Record, component, is_vertical
 
 # A closed-form pulse is sampled every min(_PULSE_STEP, shortest period /
 # _PULSE_POINTS) s: its piecewise-linear interpolant then departs from it by
@@ -329,6 +329,31 @@ def _rotated_peaks(rows, coefficients, cos, sin):
     return peak
 
 
+# Two components' azimuths may differ from perpendicular by this much (deg).
+_SKEW = 1.0
+
+
+def _check_horizontal_pair(first: Record, second: Record) -> None:
+    """`ValueError` unless the components are horizontal (no vertical one by
+    name) and, where both azimuths are known, perpendicular within `_SKEW`
+    degrees: the rotation x_g'' = a1 cos a + a2 sin a holds for such axes."""
+    for name, record in (("first", first), ("second", second)):
+        if is_vertical(record):
+            raise ValueError(
+                f"`{name}` must be a horizontal component, got the vertical "
+                f"component {component(record)} ({record.name})"
+            )
+    if first.azimuth is None or second.azimuth is None:
+        return
+    skew = abs((float(second.azimuth) - float(first.azimuth)) % 180.0 - 90.0)
+    if skew > _SKEW:
+        raise ValueError(
+            "`first` and `second` must be perpendicular components (azimuths "
+            f"90 deg apart, within {_SKEW:g} deg), got azimuths "
+            f"{first.azimuth:g} and {second.azimuth:g} deg"
+        )
+
+
 def rotd50(
     first: Record, second: Record, periods, damping: float = 0.05
 ) -> ResponseSpectrum:
@@ -343,8 +368,9 @@ def rotd50(
     shorter than the other is at rest after its last sample.
 
     Args:
-        first, second: the two components (`Record`s, not batched, of one
-            time step; scaled records allowed).
+        first, second: the two horizontal components (`Record`s, not
+            batched, of one time step, perpendicular where their azimuths
+            are known; scaled records allowed).
         periods: the oscillator periods T (s), in [0.001, 100] s.
         damping: the damping ratio zeta, >= 0 and < 1; default 0.05.
 
@@ -354,7 +380,9 @@ def rotd50(
 
     Raises:
         ValueError: components that are not single records of one time
-            step, periods outside [0.001, 100] s, or a damping outside [0, 1)
+            step, a vertical component (by name: UP, DWN, ...), two whose
+            azimuths are known and not perpendicular (within 1 degree),
+            periods outside [0.001, 100] s, or a damping outside [0, 1)
             (before any compile).
 
     Examples:
@@ -386,6 +414,7 @@ def rotd50(
             "`second` must have the time step of `first` (two components of one "
             f"recording), got {float(second.dt)} s and {float(first.dt)} s"
         )
+    _check_horizontal_pair(first, second)
     periods = check_periods(periods)
     damping = check_damping(damping)
     components = []

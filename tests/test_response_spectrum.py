@@ -180,6 +180,27 @@ def test_rotd50_is_the_median_over_rotated_records(pacoima_pair):
     )
 
 
+def test_rotd50_takes_two_perpendicular_horizontal_components():
+    """RotD50 rotates two perpendicular horizontal components: a vertical one
+    (by its name) or two whose azimuths are not 90 degrees apart (within 1)
+    are refused; unknown azimuths are taken as perpendicular."""
+    samples = np.sin(np.linspace(0.0, 20.0, 400))
+
+    def record(name=None, azimuth=None):
+        return jr.Record(samples, 0.01, name=name, azimuth=azimuth)
+
+    up = record("Station, UP")
+    with pytest.raises(ValueError, match="`second` must be a horizontal component"):
+        jr.rotd50(record(), up, 1.0)
+    with pytest.raises(ValueError, match=r"perpendicular.*got azimuths 90 and 90"):
+        jr.rotd50(record(azimuth=90.0), record(azimuth=90.0), 1.0)
+    with pytest.raises(ValueError, match="perpendicular"):
+        jr.rotd50(record(azimuth=0.0), record(azimuth=45.0), 1.0)
+    for azimuths in [(164.0, 254.0), (0.0, 270.5), (None, 45.0)]:
+        a, b = record(azimuth=azimuths[0]), record(azimuth=azimuths[1])
+        assert np.isfinite(jr.rotd50(a, b, 1.0).pseudo_acceleration).all()
+
+
 @pytest.mark.parametrize(
     "call, message",
     [
