@@ -66,10 +66,11 @@ class Stop(AbstractChecked):
     damping: Float[Array, "..."] = parameter("damping", "1", default=0.2)
 
     def constraints(self):
+        # Named as the stop's, apart from an isolator's own period and damping.
         return [
-            greater_than_zero("period", self.period),
+            greater_than_zero("Stop.period", self.period),
             Constraint(
-                "damping",
+                "Stop.damping",
                 self.damping,
                 lambda v: (v >= 0) & (v < 1),
                 "finite, >= 0 and < 1",

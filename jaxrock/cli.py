@@ -712,6 +712,12 @@ def _run_response_spectrum(a) -> int:
         out = "response_spectrum.png"
     out = None if out is None else _check_out(out)
     csv = None if a.csv is None else _check_csv(a.csv)
+    if (
+        out is not None
+        and csv is not None
+        and os.path.abspath(out) == os.path.abspath(csv)
+    ):
+        raise ValueError(f"--csv and --out name one file, {csv}: give two")
     if a.rotd50 and len(a.records) != 2:
         raise ValueError(
             f"--rotd50 takes the two horizontal components, got {len(a.records)} "

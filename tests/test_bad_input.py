@@ -122,6 +122,9 @@ def test_traced_valid_parameters_are_unaffected(traced):
         (lambda: jr.Block(True, 1.0), "`slenderness` must be a real number"),
         (lambda: jr.Block(4.0, None), "`size` must be a real number"),
         (lambda: jr.LinearIsolator(2.0, 1 + 2j, 0.5), "`damping` must be a real"),
+        # A stop's parameters, apart from its isolator's own period and damping.
+        (lambda: jr.Stop(0.05, 1.0), "`Stop.damping` must be finite, >= 0 and < 1"),
+        (lambda: jr.Stop(-0.05), "`Stop.period` must be finite and > 0"),
         (lambda: jr.MPPulse(1.0, 0.5, 2.0, 0.0, t0=-10.0), "`t0` must be > -gamma"),
         (lambda: jr.SolverOptions(max_steps=2.5), "`max_steps` must be an integer"),
         (lambda: jr.fit_lognormal([1.0, 2.0], [True]), "`im` and `failed`"),

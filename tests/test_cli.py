@@ -648,6 +648,7 @@ def test_cli_response_spectrum_writes_the_spectra(tmp_path, capsys):
         (["missing.AT2"], "RECORD: no such file: missing.AT2"),
         (["RSN.AT2", "--csv", "nowhere/s.csv"], "--csv: folder nowhere does not exist"),
         (["RSN.AT2", "--out", "s.jpg"], "--out: cannot write '.jpg' files"),
+        (["RSN.AT2", "--csv", "s.png", "--out", "s.png"], "--csv and --out name one"),
     ],
 )
 def test_cli_response_spectrum_errors_are_one_line(
