@@ -125,8 +125,8 @@ def test_history_names_the_stop_and_gradients_go_through():
 @pytest.mark.parametrize(
     "build, message",
     [
-        (lambda: jr.Stop(0.0), "`period` must be"),
-        (lambda: jr.Stop(0.05, 1.0), "`damping` must be"),
+        (lambda: jr.Stop(0.0), "`Stop.period` must be"),
+        (lambda: jr.Stop(0.05, 1.0), "`Stop.damping` must be"),
         (lambda: _isolator("linear", stop=jr.Stop(0.05)), "`stop` needs a `capacity`"),
         (lambda: jr.FixedBase(capacity=0.1, stop=jr.Stop(0.05)), "does not move"),
         (lambda: _isolator("linear", capacity=0.1, stop=0.05), "`stop` must be a Stop"),
