@@ -161,6 +161,14 @@ class AbstractIsolator(AbstractChecked):
     def initial_state(self) -> Float[Array, " n"] | None:
         """The base state at rest."""
 
+    @property
+    def geometric_limit(self) -> Float[Array, "..."] | None:
+        """The largest |u| (m) the isolator's geometry allows, past which its
+        model describes nothing real (None, the default: no such bound).
+        An analysis whose max |u| reaches it ends CAPACITY_EXCEEDED, as at a
+        `capacity`."""
+        return None
+
     @abc.abstractmethod
     def force(self, state: Float[Array, " n"]) -> Float[Array, ""]:
         """Isolator force per unit total mass, F / M (m/s^2)."""
@@ -582,6 +590,12 @@ class AbstractFrictionPendulum(AbstractBoucWenIsolator):
     @property
     def strength_per_mass(self):
         return self.friction * GRAVITY
+
+    @property
+    def geometric_limit(self):
+        # A dish of radius R holds the slider within |u| < R (a hemisphere;
+        # a real dish far less): K u = M g u / R assumes |u| << R.
+        return self.radius
 
     def force(self, state):
         # g (u / R + mu z): K u + Q z over M, in the arithmetic of the

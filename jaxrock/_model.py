@@ -719,12 +719,17 @@ def response(c: Carry, block, base, opts) -> Response:
     lost = ~c.overturned & (c.max_theta > 0.5 * jnp.pi)
     status = jnp.where(lost & (status == Status.SUCCESS), Status.SOLVER_FAILED, status)
     # Outside the model, where it ends as it would: the base reaches its
-    # capacity (an isolator without its stop), or the block slides.
+    # capacity (an isolator without its stop) or its geometry's limit, or the
+    # block slides.
     final = (status == Status.SUCCESS) | (status == Status.UNDECIDED)
+    limits = [base.geometric_limit]
     if base.capacity is not None and base.stop is None:
-        reached = final & (c.max_u >= base.capacity)
-        status = jnp.where(reached, Status.CAPACITY_EXCEEDED, status)
-        final = final & ~reached
+        limits.append(base.capacity)
+    for limit in limits:
+        if limit is not None:
+            reached = final & (c.max_u >= limit)
+            status = jnp.where(reached, Status.CAPACITY_EXCEEDED, status)
+            final = final & ~reached
     if c.slid is not None:
         status = jnp.where(c.slid & final, Status.SLIDING, status)
     outcome = jnp.where(

@@ -85,8 +85,10 @@ class Status(IntEnum):
         CAPACITY_EXCEEDED: the isolator has a `capacity` without a `stop`
             and max |u| reached it: the base would hit its stop, which the
             model then does not follow;
-            the results are those of the isolator without a stop (8). It
-            takes precedence over SLIDING; a failure over both.
+            the results are those of the isolator without a stop (8). Also
+            where max |u| reached the isolator's `geometric_limit` (a
+            friction pendulum's radius R), stop or not. It takes precedence
+            over SLIDING; a failure over both.
 
     Examples:
         >>> import jaxrock as jr
@@ -475,7 +477,12 @@ class Response(eqx.Module):
         elif int(self.status) == Status.FREE_FLIGHT:
             text += " [status FREE_FLIGHT: the block would leave its base]"
         elif int(self.status) == Status.CAPACITY_EXCEEDED:
-            text += " [status CAPACITY_EXCEEDED: the base would hit its stop]"
+            text += (
+                " [status CAPACITY_EXCEEDED: the base reached its capacity or "
+                "its geometry's limit]"
+            )
+        elif int(self.status) == Status.UNDECIDED:
+            text += " [status UNDECIDED: the fate is still open at the window's end]"
         elif int(self.status) != Status.SUCCESS:
             text += f" [status {Status(int(self.status)).name}: not converged]"
         return text
