@@ -478,8 +478,8 @@ class Response(eqx.Module):
             text += " [status FREE_FLIGHT: the block would leave its base]"
         elif int(self.status) == Status.CAPACITY_EXCEEDED:
             text += (
-                " [status CAPACITY_EXCEEDED: the base reached its capacity or "
-                "its geometry's limit]"
+                " [status CAPACITY_EXCEEDED: the base would hit its stop or "
+                "leave its dish]"
             )
         elif int(self.status) == Status.UNDECIDED:
             text += " [status UNDECIDED: the fate is still open at the window's end]"
