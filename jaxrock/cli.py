@@ -1051,8 +1051,12 @@ def _check_fit_pulse(a) -> None:
         )
     if len(a.records) == 1 and a.strike is not None:
         raise ValueError("--strike needs two components of one recording")
-    if a.strike is not None and not math.isfinite(a.strike):
-        raise ValueError(f"--strike must be a finite angle, got {a.strike}")
+    if a.strike is not None and not (
+        math.isfinite(a.strike) and -360.0 <= a.strike <= 360.0
+    ):
+        raise ValueError(
+            f"--strike must be a finite angle in [-360, 360] degrees, got {a.strike}"
+        )
     _check_fit_records(a.records)
 
 
@@ -1066,6 +1070,12 @@ def _run_fit_pulse(a) -> int:
     records = [_fit_record(name) for name in a.records]
     record = records[0]
     if len(records) == 2:
+        for name, r in zip(a.records, records):
+            if jr.records.is_vertical(r):
+                raise ValueError(
+                    f"RECORD: {name} is a vertical component ({r.name}); give "
+                    "the two horizontal ones"
+                )
         record = jr.records.strike_normal(*records, strike=a.strike)
     fit = jr.fit_pulse(record)
     p = fit.pulse
@@ -1096,7 +1106,11 @@ def _executor(scheduler: str | None):
         raise ValueError(
             "--scheduler needs Dask: pip install 'jaxrock[dask]'"
         ) from None
-    with Client(scheduler) as client:
+    try:
+        client = Client(scheduler)
+    except (OSError, ValueError, TypeError) as err:
+        raise ValueError(f"--scheduler {scheduler}: {err}") from None
+    with client:
         yield client.get_executor()
 
 

