@@ -592,6 +592,7 @@ def _pacoima(component: str):
     [
         (["simulate", "--record", "DWN-up"], "is a vertical component"),
         (["map", "--record", "164-hor1", "DWN-up"], "is a vertical component"),
+        (["fit-pulse", "164-hor1", "DWN-up", "--strike", "30"], "is a vertical"),
         (
             ["simulate", "--record", "164-hor1", "--vertical", "254-hor2"],
             "is a horizontal component (azimuth 254 deg); give it as --record",
