@@ -28,7 +28,7 @@ from ._controller import KinkClip
 from ._dynamics import Args, Phase, rest_level, vector_field
 from ._events import EVENT_ATOL, EVENT_RTOL, newton_in_bracket
 from ._isolators import AbstractIsolator
-from ._layout import CPU_LOOP
+from ._layout import Loop, loop_for
 from ._misc import GRAVITY, computed_once, is_none, where_lanes
 from ._model import (
     Conditions,
@@ -742,7 +742,9 @@ def _end_lanes(
     return jax.vmap(_look_ahead)(sub, located, new)
 
 
-def flat_step(c, block, base, motion, duration, opts, in_axes, loop=CPU_LOOP):
+def flat_step(
+    c, block, base, motion, duration, opts, in_axes, loop: Loop | None = None
+):
     """One step attempt of every lane (leading axis); returns the new carries
     and the attempts (`_Attempt`, before their events were located).
 
@@ -756,6 +758,7 @@ def flat_step(c, block, base, motion, duration, opts, in_axes, loop=CPU_LOOP):
     to the host, and thousands of lanes end in every step) the batch is every
     lane, each one kept or replaced as it ends or not.
     """
+    loop = loop_for("cpu") if loop is None else loop
     lanes = c.t.shape[0]
     a = jax.vmap(_attempt, in_axes=(0,) + in_axes + (None, None))(
         c, block, base, motion, duration, opts

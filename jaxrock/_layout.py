@@ -61,13 +61,10 @@ class Loop(NamedTuple):
     newton_unrolled: bool = True
 
 
-CPU_LOOP = Loop(CPU_LANE_WIDTH, one_event_batch=False)
-
-
 def loop_for(platform: str) -> Loop:
     """The loop of a chunk on a device of `platform` ("cpu", "gpu", ...)."""
     if platform == "cpu":
-        return CPU_LOOP
+        return Loop(CPU_LANE_WIDTH, one_event_batch=False)
     return Loop(ACCELERATOR_LANE_WIDTH, one_event_batch=True)
 
 

@@ -120,6 +120,8 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     events' Newton iterations not unrolled): another program than the
     default, giving the same map (but for the last bits at level 0).
     `jaxrock map` compiles a small map so; a larger one keeps the default."""
+    # The programs this test makes, whatever other tests of this process made.
+    monkeypatch.setattr(_programs, "_PROGRAMS", {})
     pulse, layout = jr.near_fault_pulse("San Fernando PCD/SN"), MotionLayout.PER_CELL
     level = "xla_backend_optimization_level"
     assert level not in _programs.compiler_options(jr.FixedBase(), layout)
