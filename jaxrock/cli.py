@@ -894,9 +894,23 @@ def _suite(name: str):
     return records, os.path.basename(os.path.abspath(name))
 
 
+def _check_base_options(a) -> None:
+    """Every base option in its range, whichever --base reads it: a value out
+    of range is a mistake even where the chosen base ignores it."""
+    import jaxrock as jr
+
+    jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
+    jr.FrictionPendulum(a.friction, a.radius, a.mass_ratio)
+    jr.BilinearIsolator(a.strength, a.period, a.yield_displacement, a.mass_ratio)
+    jr.SphericalRollingIsolator(a.radius, a.rolling_resistance, a.mass_ratio)
+    jr.ConicalRollingIsolator(a.slope, a.rolling_resistance, a.mass_ratio)
+    jr.Stop(1.0, a.stop_damping)
+
+
 def _base(a):
     import jaxrock as jr
 
+    _check_base_options(a)
     if a.base == "fixed":
         if a.capacity is not None or a.stop_period is not None:
             raise ValueError(
@@ -1133,6 +1147,7 @@ def _run_spectrum(a) -> int:
     from jaxrock import plot
 
     block = jr.Block(a.slenderness, a.size)
+    _check_base_options(a)
     bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
     spectra = [
         jr.overturning_spectrum(

@@ -73,6 +73,9 @@ def _run(args, cwd, python_code=None):
         (["map", "--record", "/nonexistent.AT2"], "no such file"),
         (["simulate", "--size", "-1"], "`size` must be"),
         (["map", "--scheduler", "bogus"], "--scheduler bogus: missing port"),
+        # A base option out of range, though the chosen base does not read it.
+        (["simulate", "--base", "fixed", "--period", "-1"], "`period` must be"),
+        (["map", "--stop-damping", "5"], "`Stop.damping` must be"),
     ],
 )
 def test_cli_errors_are_one_line(argv, message, capsys):
