@@ -949,12 +949,7 @@ def _inputs(a):
         records, name = _suite(a.suite)
     elif a.record:
         records = [jr.io.read_at2(path) for path in a.record]
-        for path, record in zip(a.record, records):
-            if jr.records.is_vertical(record):
-                raise ValueError(
-                    f"--record: {path} is a vertical component "
-                    f"({record.name}); give it as --vertical"
-                )
+        _check_horizontal(records, a.record, "--record", "give it as --vertical")
         name = os.path.basename(a.record[0])
         if len(records) > 1:
             name = f"{len(records)} records"
@@ -978,6 +973,17 @@ def _inputs(a):
     if a.scale != 1.0:
         motion = motion.scaled(a.scale)
     return motion, _base(a), name
+
+
+def _check_horizontal(records, paths, option: str, advice: str) -> None:
+    """`ValueError` naming `option` if a record is a vertical component."""
+    import jaxrock as jr
+
+    for path, record in zip(paths, records):
+        if jr.records.is_vertical(record):
+            raise ValueError(
+                f"{option}: {path} is a vertical component ({record.name}); {advice}"
+            )
 
 
 def _vertical(path, scale=1.0):
@@ -1084,12 +1090,7 @@ def _run_fit_pulse(a) -> int:
     records = [_fit_record(name) for name in a.records]
     record = records[0]
     if len(records) == 2:
-        for name, r in zip(a.records, records):
-            if jr.records.is_vertical(r):
-                raise ValueError(
-                    f"RECORD: {name} is a vertical component ({r.name}); give "
-                    "the two horizontal ones"
-                )
+        _check_horizontal(records, a.records, "RECORD", "give the two horizontal ones")
         record = jr.records.strike_normal(*records, strike=a.strike)
     fit = jr.fit_pulse(record)
     p = fit.pulse
