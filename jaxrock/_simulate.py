@@ -559,19 +559,26 @@ def simulate(
     motion = motion.unlabeled()  # labels are static: they would recompile
     if not history:
         return _run_jit(block, base, motion, duration, opts)
+    history_step = _history_step(history_step, float(duration))
+    result, hist = _history(block, base, motion, duration, opts, history_step)
+    return eqx.tree_at(lambda r: r.history, result, hist, is_leaf=lambda x: x is None)
+
+
+def _history_step(history_step, duration: float) -> float:
+    """`simulate`'s `history_step` (default: duration / 2000, at most 0.01 s),
+    checked: one number of at least duration / `MAX_HISTORY_SAMPLES` (the
+    history's rows are kept in memory, about 100 bytes each)."""
     if history_step is None:
-        history_step = min(float(duration) / 2000.0, 0.01)
+        return min(duration / 2000.0, 0.01)
     history_step = one_real_number("history_step", history_step, "finite and > 0 (s)")
-    # The history's rows are kept in memory (about 100 bytes each).
-    shortest = float(duration) / MAX_HISTORY_SAMPLES
+    shortest = duration / MAX_HISTORY_SAMPLES
     check(
         "history_step",
         history_step,
         lambda v: v >= shortest,
         f">= the window / {MAX_HISTORY_SAMPLES:,} ({shortest:.3g} s)",
     )
-    result, hist = _history(block, base, motion, duration, opts, history_step)
-    return eqx.tree_at(lambda r: r.history, result, hist, is_leaf=lambda x: x is None)
+    return history_step
 
 
 def _check_single(block, base, motion):
