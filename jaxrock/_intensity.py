@@ -9,9 +9,9 @@ from ._ground import AbstractGroundMotion, MPPulse, SinePulse
 from ._misc import GRAVITY, positive
 from ._record import Record
 from ._response_spectrum import (
-    PERIOD_RANGE,
     check_periods,
     motion_samples,
+    period_in_range,
     response_spectrum,
 )
 from ._vertical import WithVertical
@@ -65,8 +65,7 @@ def parse_measure(measure) -> tuple[str, float | None]:
             period = float(measure[3:])
         except ValueError:
             raise ValueError(f"{allowed}, got {measure!r}") from None
-        low, high = PERIOD_RANGE
-        if not (np.isfinite(period) and low <= period <= high):
+        if not period_in_range(period):
             raise ValueError(f"{allowed}, got {measure!r}")
         return "sa", period
     if measure not in _ATTRS:

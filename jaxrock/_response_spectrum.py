@@ -192,6 +192,12 @@ def spectral_displacements(samples: MotionSamples, periods, damping):
     )
 
 
+def period_in_range(period) -> bool:
+    """Whether one period (s) is finite and in `PERIOD_RANGE`."""
+    low, high = PERIOD_RANGE
+    return bool(np.isfinite(period) and low <= period <= high)
+
+
 def check_periods(periods, name: str = "periods") -> np.ndarray:
     """`periods` as a 1-D float array of finite values in `PERIOD_RANGE`
     (`ValueError` naming `name`)."""

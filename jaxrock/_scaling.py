@@ -4,7 +4,12 @@ range (`Record.scaled_to`, `Record.scaled_to_spectrum`)."""
 
 import numpy as np
 
-from ._response_spectrum import PERIOD_RANGE, check_periods, response_spectrum
+from ._response_spectrum import (
+    PERIOD_RANGE,
+    check_periods,
+    period_in_range,
+    response_spectrum,
+)
 
 
 def factor_to(record, *, pga=None, pgv=None, sa=None) -> np.ndarray:
@@ -21,8 +26,8 @@ def factor_to(record, *, pga=None, pgv=None, sa=None) -> np.ndarray:
         if not (isinstance(sa, (tuple, list)) and len(sa) == 2):
             raise ValueError(f"`sa` must be (period in s, Sa in m/s^2), got {sa!r}")
         period = np.asarray(sa[0], dtype=float)
-        low, high = PERIOD_RANGE
-        if period.ndim or not (np.isfinite(period) and low <= period <= high):
+        if period.ndim or not period_in_range(period):
+            low, high = PERIOD_RANGE
             raise ValueError(
                 f"`sa`'s period must be one number in [{low}, {high}] (s), "
                 f"got {sa[0]!r}"
