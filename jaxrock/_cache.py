@@ -327,9 +327,16 @@ def _machine() -> list[str]:
     ]
 
 
-def compiled(name: str, key: str | None, lower: Callable[[], jax.stages.Lowered]):
-    """The program `lower()` gives, compiled (`jax.stages.Compiled`), kept
-    in `program_folder()` and read back by later processes of the same user.
+def compiled(
+    name: str,
+    key: str | None,
+    lower: Callable[[], jax.stages.Lowered],
+    platform: str | None = None,
+):
+    """The program `lower()` gives, compiled (`jax.stages.Compiled`) for
+    `platform` (default: JAX's default backend; the key names any other),
+    kept in `program_folder()` and read back by later processes of the same
+    user.
 
     Its file, `NAME-DIGEST.jaxprogram`, is keyed by `key` (what the program
     depends on besides code: its static structure, shapes, ...), by
@@ -359,7 +366,7 @@ def compiled(name: str, key: str | None, lower: Callable[[], jax.stages.Lowered]
             kept, payload = content.split(b"\n", 1)
             if kept == head:
                 saved = pickle.loads(zlib.decompress(payload))
-                return serialize_executable.deserialize_and_load(*saved)
+                return serialize_executable.deserialize_and_load(*saved, platform)
     except Exception:  # missing, damaged or forged: compile again
         pass
     hits = _cache_hits()

@@ -36,6 +36,10 @@ MAX_CHUNK_SIZE = 8192
 ACCELERATOR_MAX_CHUNK_SIZE = 1 << 20
 # The smallest chunk shape: small maps share one compile.
 SMALLEST_CHUNK = 64
+# The most cells of a map that runs on the host's CPU by default where JAX's
+# devices are accelerators (`map_devices`): on an H100 a map of 16,384 cells
+# under a record runs about as fast as on two CPU cores, a smaller one slower.
+HOST_MAP_CELLS = 16384
 
 
 class Loop(NamedTuple):
@@ -59,6 +63,25 @@ class Loop(NamedTuple):
     lanes: int
     one_event_batch: bool
     newton_unrolled: bool = True
+
+
+def map_devices(cells: int) -> list[jax.Device]:
+    """The devices that run a map of `cells` cells by default: the local
+    devices, but the host's CPU where they are accelerators and the map has at
+    most `HOST_MAP_CELLS` cells.
+
+    A GPU compiles a map's loop in 10-40 s, and a map of a few thousand cells
+    starts all its analyses at once in the GPU's lanes, which then wait for
+    the longest: it runs slower there than on two CPU cores (the docs'
+    performance page, "On a GPU"). Without a CPU backend (`JAX_PLATFORMS`
+    names none), the local devices."""
+    devices = jax.local_devices()
+    if devices[0].platform == "cpu" or cells > HOST_MAP_CELLS:
+        return devices
+    try:
+        return jax.local_devices(backend="cpu")
+    except RuntimeError:
+        return devices
 
 
 def loop_for(platform: str) -> Loop:

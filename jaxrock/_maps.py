@@ -9,6 +9,7 @@ and assembles the map.
 
 import os
 import time
+from collections.abc import Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 
 import equinox as eqx
@@ -93,13 +94,13 @@ class _ChunkRunner:
     one thread per CPU core: XLA releases the GIL, so chunks run at once.
     """
 
-    def __init__(self, grid: Grid, duration, opts, padded: int, executor=None):
+    def __init__(self, grid: Grid, duration, opts, padded: int, devices, executor=None):
         self.grid, self.padded, self.executor = grid, padded, executor
         self.motion, self.duration, self.opts = _numpy(
             (grid.motion.unlabeled(), duration, opts)
         )
         self.one_base = _numpy(grid.base) if grid.base_shape == () else None
-        self.devices = jax.local_devices()
+        self.devices = devices
         # A thread per CPU core, or per accelerator (each runs its chunks in turn).
         cpu = self.devices[0].platform == "cpu"
         self.threads = len(self.devices)
@@ -208,6 +209,7 @@ def behavior_map(
     solver=None,
     store: str | os.PathLike | None = None,
     executor: Executor | None = None,
+    devices: Sequence[jax.Device] | None = None,
     restitution_factor=None,
     restitution=None,
     friction: float | None = None,
@@ -257,9 +259,16 @@ def behavior_map(
     chunks of cells; each result goes to the store as it arrives, and a task
     that fails (after the executor's own retries) raises `RuntimeError` naming
     its chunk. The map is the same to the bit as without an executor.
+
+    `devices` (JAX devices of one platform, e.g. `jax.devices("cpu")`) run
+    the chunks without an executor. Default: the local devices, but the
+    host's CPU for a map of at most 16,384 cells where the local devices are
+    GPUs (such a map runs faster there, and compiles in a few seconds rather
+    than tens: the docs' performance page, "On a GPU").
     """
     check_base_and_motion(base, motion)
     check_executor(executor)
+    devices = _devices(devices, executor)
     lam, r = grid_axis("slenderness", slenderness), grid_axis("size", size)
     Block(lam, 1.0), Block(1.0, r)  # the ranges of each axis
     duration, opts = SolverOptions.for_analysis(
@@ -278,9 +287,11 @@ def behavior_map(
     chunk_size = _layout.chunk_size(
         chunk_size, store is not None or executor is not None
     )
-    chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size)
+    if devices is None:
+        devices = jax.local_devices() if executor else _layout.map_devices(grid.n)
+    chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size, devices)
     duration = as_float(duration)
-    runner = _ChunkRunner(grid, duration, opts, padded, executor)
+    runner = _ChunkRunner(grid, duration, opts, padded, devices, executor)
     if store is not None:
         key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
@@ -290,6 +301,30 @@ def behavior_map(
     results, useful, executed = _run(runner, grid, chunk, chunks, store, progress)
     seconds = time.perf_counter() - t
     return _assemble(grid, results, seconds, useful, executed)
+
+
+def _devices(devices, executor) -> list | None:
+    """`devices` as a list, or None; `ValueError` unless it is None or a
+    non-empty sequence of JAX devices of one platform, given without an
+    `executor` (whose tasks run on its workers' devices)."""
+    if devices is None:
+        return None
+    listed = list(devices) if isinstance(devices, (list, tuple)) else [devices]
+    if not listed or not all(isinstance(d, jax.Device) for d in listed):
+        raise ValueError(
+            "`devices` must be None or a list of JAX devices, e.g. "
+            f"jax.devices('cpu'), got {devices!r}"
+        )
+    if len({d.platform for d in listed}) > 1:
+        raise ValueError(
+            f"`devices` must be of one platform, got {[str(d) for d in listed]}"
+        )
+    if executor is not None:
+        raise ValueError(
+            "`devices` and `executor` exclude each other: an executor's chunks "
+            "run on its workers' devices"
+        )
+    return listed
 
 
 def _checked_grid(lam, r, base, motion, own, friction) -> Grid:

@@ -63,7 +63,8 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
         jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=x.sharding) for x in leaves
     )
     task = jax.tree_util.tree_unflatten(treedef, specs)
-    options = compiler_options(task.base, task.layout, _FIRST_ANSWER)
+    platform = next(iter(leaves[0].devices())).platform
+    options = compiler_options(task.base, task.layout, _FIRST_ANSWER, platform)
     # A hysteretic base keeps XLA's level, and its Newton in a loop compiles faster.
     if _FIRST_ANSWER and task.base.hysteretic_state:
         loop = loop._replace(newton_unrolled=False)
@@ -72,11 +73,11 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())
     with lock:
         if key not in _PROGRAMS:
-            _PROGRAMS[key] = _make_program(treedef, specs, loop, options)
+            _PROGRAMS[key] = _make_program(treedef, specs, loop, options, platform)
         return _PROGRAMS[key]
 
 
-def _make_program(treedef, specs, loop: _layout.Loop, options: dict):
+def _make_program(treedef, specs, loop: _layout.Loop, options: dict, platform: str):
     """`chunk_program`'s function, compiled here or loaded from the folder."""
 
     def map_chunk_program(*leaves):
@@ -93,17 +94,21 @@ def _make_program(treedef, specs, loop: _layout.Loop, options: dict):
 
     static = _cache.static_key(treedef)
     shapes = [(s.shape, str(s.dtype)) for s in specs]
-    key = json.dumps([static, shapes, list(loop), options])
-    if static is None or len(jax.local_devices()) > 1:
+    key = json.dumps([static, shapes, list(loop), options, platform])
+    if static is None or len(jax.local_devices(backend=platform)) > 1:
         key = None  # not kept
-    return _cache.compiled("map_chunk", key, lower)
+    return _cache.compiled("map_chunk", key, lower, platform)
 
 
 def compiler_options(
-    base: AbstractIsolator, layout: MotionLayout, first_answer: bool = False
+    base: AbstractIsolator,
+    layout: MotionLayout,
+    first_answer: bool = False,
+    platform: str | None = None,
 ) -> dict:
     """XLA's options for a chunk loop on `base` under a motion laid out as
-    `layout` (with `first_answer`: see `first_answer`).
+    `layout` (with `first_answer`: see `first_answer`) on `platform`
+    (default: JAX's default backend).
 
     On the CPU, a loop under a closed-form motion on a base without a
     hysteretic state compiles with XLA's loop emitters instead of its fusion
@@ -112,13 +117,14 @@ def compiler_options(
     emitters (the docs' performance page, "Choices in the code").
     (XLA releases without that option, jaxlib 0.11 on, keep their default.)
     """
-    if jax.default_backend() != "cpu":
+    platform = platform or jax.default_backend()
+    if platform != "cpu":
         return {}
     options = {}
     if first_answer and not base.hysteretic_state:
         options["xla_backend_optimization_level"] = 0
     if layout is MotionLayout.PER_CELL and not base.hysteretic_state:
         options["xla_cpu_use_fusion_emitters"] = False
-    if not options or compiler_accepts(options):
+    if not options or compiler_accepts(options, platform):
         return options
-    return {k: v for k, v in options.items() if compiler_accepts({k: v})}
+    return {k: v for k, v in options.items() if compiler_accepts({k: v}, platform)}

@@ -86,18 +86,19 @@ def _backends_started() -> bool:
         return False
 
 
-def compiler_accepts(options: dict) -> bool:
-    """Whether this JAX's XLA (on the default backend) takes the compiler
-    `options`: XLA adds and removes options between releases, and refuses a
-    program with one it does not know."""
-    return _accepts(json.dumps(options, sort_keys=True))
+def compiler_accepts(options: dict, platform: str | None = None) -> bool:
+    """Whether this JAX's XLA on `platform` (default: the default backend)
+    takes the compiler `options`: XLA adds and removes options between
+    releases, and refuses a program with one it does not know."""
+    return _accepts(json.dumps(options, sort_keys=True), platform)
 
 
 @functools.cache
-def _accepts(options: str) -> bool:
+def _accepts(options: str, platform: str | None) -> bool:
     program = jax.jit(lambda x: x + 1.0, compiler_options=json.loads(options))
+    device = jax.local_devices(backend=platform)[0]
     try:
-        program.lower(1.0).compile()
+        program.lower(jax.device_put(1.0, device)).compile()
     except jax.errors.JaxRuntimeError:
         return False
     return True

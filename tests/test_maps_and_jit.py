@@ -1,5 +1,7 @@
 """Compilation reuse, behavior maps, save/load and the CLI."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import diffrax
 import jax
 import numpy as np
@@ -112,6 +114,51 @@ def test_automatic_chunks_on_a_gpu():
     assert _layout.chunk_plan(3 * 10**6, "auto", gpu) == (10**6, 1 << 20, 3)
     assert _layout.chunk_plan(3 * 10**6, "auto", gpu * 2) == (750_000, 1 << 20, 4)
     assert _layout.chunk_plan(8232, 610, gpu) == (610, 610, 14)
+
+
+def test_a_small_map_on_a_gpu_machine_runs_on_its_cpu(monkeypatch):
+    """Where the local devices are GPUs, a map of at most HOST_MAP_CELLS
+    cells runs on the host's CPU and a larger one on the GPUs; without a CPU
+    backend (JAX_PLATFORMS=cuda), every map on the GPUs. On a CPU, the CPU."""
+    assert _layout.map_devices(10**6) == jax.local_devices()
+
+    class Gpu:
+        platform = "gpu"
+
+    gpus, cpus = [Gpu()], jax.local_devices(backend="cpu")
+
+    def local_devices(backend=None):
+        return cpus if backend == "cpu" else gpus
+
+    monkeypatch.setattr(_layout.jax, "local_devices", local_devices)
+    assert _layout.map_devices(2440) == cpus
+    assert _layout.map_devices(_layout.HOST_MAP_CELLS) == cpus
+    assert _layout.map_devices(_layout.HOST_MAP_CELLS + 1) == gpus
+
+    def without_cpu(backend=None):
+        if backend == "cpu":
+            raise RuntimeError("Unknown backend cpu")
+        return gpus
+
+    monkeypatch.setattr(_layout.jax, "local_devices", without_cpu)
+    assert _layout.map_devices(2440) == gpus
+
+
+def test_a_map_runs_on_the_devices_given(linear_map):
+    """`devices` chooses the devices that run a map's chunks: the same map
+    on the CPU given by name; an empty list, anything but devices, or devices
+    beside an executor are refused before anything compiles."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    bm = jr.behavior_map(LAM, SIZE, base, PULSE, devices=jax.devices("cpu"))
+    for field in ("outcome", "status", "impacts"):
+        np.testing.assert_array_equal(getattr(bm, field), getattr(linear_map, field))
+    np.testing.assert_allclose(bm.max_rotation, linear_map.max_rotation, atol=1e-9)
+    with ThreadPoolExecutor(1) as pool:
+        for devices, executor in (([], None), (["cpu"], None), (jax.devices(), pool)):
+            with pytest.raises(ValueError, match="`devices`"):
+                jr.behavior_map(
+                    LAM, SIZE, base, PULSE, devices=devices, executor=executor
+                )
 
 
 def test_chunking_does_not_change_results(linear_map):
