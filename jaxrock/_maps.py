@@ -84,14 +84,15 @@ def _compute_chunk(task: ChunkTask, device=None) -> dict:
 
 
 class _ChunkRunner:
-    """Runs chunks of cells through `map_chunk` (`_compute_chunk`), on the
-    local devices or as the tasks of an executor.
+    """Runs chunks of cells through `map_chunk` (`_compute_chunk`), on
+    `devices` or as the tasks of an executor.
 
     A chunk's cells are padded to `padded` (the last cell repeated, never
     analysed) so that maps of other sizes reuse a handful of compiles. Without
-    an executor, chunks go round-robin to the local devices (GPUs, or several
-    CPU devices with XLA_FLAGS=--xla_force_host_platform_device_count=N), from
-    one thread per CPU core: XLA releases the GIL, so chunks run at once.
+    an executor, chunks go round-robin to `devices` (GPUs, or the CPU: one
+    device, or several with
+    XLA_FLAGS=--xla_force_host_platform_device_count=N), from one thread per
+    CPU core: XLA releases the GIL, so chunks run at once.
     """
 
     def __init__(self, grid: Grid, duration, opts, padded: int, devices, executor=None):
