@@ -30,17 +30,25 @@ from window import MAPS, motions  # noqa: E402
 import jaxrock as jr  # noqa: E402
 
 
-def moved(a: jr.BehaviorMap, b: jr.BehaviorMap) -> dict:
-    """The cells of `b` whose outcome differs from `a`'s, and the largest
-    difference of max rotation where neither overturns."""
-    differ = a.outcome != b.outcome
-    standing = (a.outcome != jr.Outcome.OVERTURNED) & ~differ
-    delta = np.abs(a.max_rotation - b.max_rotation)[standing]
+def moved(a, b) -> dict:
+    """The cells of map `b` whose outcome differs from map `a`'s, and the
+    largest difference of max rotation where neither overturns (each map a
+    `BehaviorMap`, or a dict of its arrays)."""
+    a, b = _arrays(a), _arrays(b)
+    differ = a["outcome"] != b["outcome"]
+    standing = (a["outcome"] != jr.Outcome.OVERTURNED) & ~differ
+    delta = np.abs(a["max_rotation"] - b["max_rotation"])[standing]
     return dict(
         differ=int(differ.sum()),
         delta=float(delta.max(initial=0.0)),
         moved=int((delta > 1e-6).sum()),
     )
+
+
+def _arrays(m) -> dict:
+    if isinstance(m, dict):
+        return m
+    return {"outcome": m.outcome, "max_rotation": m.max_rotation}
 
 
 def main():

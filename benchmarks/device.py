@@ -55,6 +55,7 @@ os.environ.setdefault("JAXROCK_CACHE", "off")
 
 import jax  # noqa: E402
 from _results import markdown_table, write_results  # noqa: E402
+from conditioning import moved  # noqa: E402
 from record_maps import BASES, SIZE, SLENDERNESS, pacoima  # noqa: E402
 
 import jaxrock as jr  # noqa: E402
@@ -213,14 +214,11 @@ def _start_reference(folder: Path, tiny: bool, suite: Path | None, sizes, maps):
 def _compare(bm, path: Path) -> dict:
     """The cells whose outcome differs from the CPU's, and the largest
     difference of max rotation where neither overturns."""
-    cpu = np.load(path)
-    differ = bm.outcome != cpu["outcome"]
-    standing = (bm.outcome != jr.Outcome.OVERTURNED) & ~differ
-    delta = np.abs(bm.max_rotation - cpu["max_rotation"])[standing]
+    change = moved(bm, dict(np.load(path)))
     return dict(
-        cpu_outcomes_differ=int(differ.sum()),
-        cpu_max_rotation_delta=float(delta.max(initial=0.0)),
-        cpu_moved_1e6=int((delta > 1e-6).sum()),
+        cpu_outcomes_differ=change["differ"],
+        cpu_max_rotation_delta=change["delta"],
+        cpu_moved_1e6=change["moved"],
     )
 
 
