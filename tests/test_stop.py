@@ -104,6 +104,37 @@ def test_map_equals_simulate(key):
             )
 
 
+@pytest.mark.parametrize("period, rtol", [(1e-3, 1e-8), (1e-2, 1e-6), (0.05, 1e-7)])
+def test_a_touch_in_a_step_that_another_event_ends_is_kept(period, rtol):
+    """The base leaves its stop and meets it on the other side within one
+    segment, in a step that the block's apex ends too (Diffrax fires the
+    first condition in order): the segment is redone up to the touch, at any
+    tolerance. Undamped stops, the block overturned: `simulate` equals the
+    map and the reference (at rtol 1e-10) in impacts and max abs(u)."""
+    name = "San Fernando PCD/SN"
+    pulse, (acc, t_end, max_step) = _pulse(name, 1.0)
+    stop = jr.Stop(period, 0.0)
+    base = jr.LinearIsolator(2.0, 0.05, 0.5, capacity=0.05, stop=stop)
+    tol = dict(rtol=rtol, atol=rtol * 1e-2)
+    one = jr.simulate(jr.Block(5.0, 1.0), base, pulse, **tol)
+    bm = jr.behavior_map([5.0], [1.0], base, pulse, **tol)
+    theirs = ref.simulate(
+        5.0,
+        1.0,
+        ("linear", 2.0, 0.05, 0.5),
+        acc,
+        t_end + 5.0,
+        max_step,
+        stop=(0.05, period, 0.0),
+    )
+    assert int(one.outcome) == theirs["outcome"] == jr.Outcome.OVERTURNED
+    assert int(one.impacts) == int(bm.impacts[0, 0]) == theirs["impacts"]
+    assert int(one.segments) == int(bm.segments[0, 0])
+    assert float(one.max_base_displacement) == pytest.approx(
+        theirs["max_base_displacement"], rel=1e-5
+    )
+
+
 def test_history_names_the_stop_and_gradients_go_through():
     pulse = jr.near_fault_pulse("San Fernando PCD/SN")
     base = _isolator("linear", capacity=0.2, stop=jr.Stop(0.1, 0.1))
