@@ -84,7 +84,14 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
 
     controller: StepSizeController
     motion: AbstractSignal
+    # A block at rest: its level at g (`_model.quiet_level`), lowered at each
+    # step to the least g_eff from its start (`level_from`); else None.
     quiet_below: jax.Array | None = None
+
+    def _quiet_below(self, t):
+        if self.quiet_below is None:
+            return None
+        return self.motion.level_from(self.quiet_below, t)
 
     @property
     def rtol(self):
@@ -107,7 +114,7 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
         t1, state = self.controller.init(
             terms, t0, t1, y0, dt0, args, func, error_order
         )
-        kink = self.motion.next_kink(t0, self.quiet_below)
+        kink = self.motion.next_kink(t0, self._quiet_below(t0))
         return self.motion.step_end(t0, t1 - t0, kink), state
 
     def adapt_step_size(self, t0, t1, y0, y1, args, y_error, error_order, state):
@@ -116,6 +123,6 @@ class KinkClip(diffrax.AbstractAdaptiveStepSizeController):
                 t0, t1, y0, y1, args, y_error, error_order, state
             )
         )
-        kink = self.motion.next_kink(next_t0, self.quiet_below)
+        kink = self.motion.next_kink(next_t0, self._quiet_below(next_t0))
         next_t1 = self.motion.step_end(next_t0, next_t1 - next_t0, kink)
         return keep, next_t0, next_t1, made_jump, state, result

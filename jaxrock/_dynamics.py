@@ -183,8 +183,9 @@ def rest_level(block: Block, slid, gravity=GRAVITY):
     """|u'' + x_g''| (m/s^2) below which nothing happens to a block at rest on
     its base: it uplifts at g tan(alpha) and, with a `friction` mu, until it
     has slid (`slid`; None without a friction), slides at mu g. The level of
-    every shortcut that skips a block at rest. Under vertical ground motion
-    `gravity` is the least g_eff (`AbstractSignal.least_gravity`)."""
+    every shortcut that skips a block at rest, at g_eff = `gravity`: under a
+    vertical motion its least value (`AbstractSignal.least_gravity`), or the
+    level at g that the motion scales (`AbstractSignal.level_from`)."""
     level = uplift_level(block, gravity)
     if slid is None:
         return level

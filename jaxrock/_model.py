@@ -50,7 +50,7 @@ from ._events import (
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import first_true, is_none
+from ._misc import GRAVITY, first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
 from ._scene import (
     carries_conditions,
@@ -222,7 +222,8 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
         dtmax = jnp.where(limited, max_step, jnp.inf)
     controller = StepSizeController(rtol=opts.rtol, atol=opts.atol, dtmax=dtmax)
     if kinks:
-        controller = KinkClip(controller, motion, quiet_below)
+        at_g = quiet_level(c, block, base, motion, at_g=True)
+        controller = KinkClip(controller, motion, at_g)
     return active, args, conditions, t_stop, dtmax, controller
 
 
@@ -246,14 +247,18 @@ def with_start_conditions(c: Carry, block, base, motion) -> Carry:
     return eqx.tree_at(lambda c: c.start_conditions, c, values, is_leaf=is_none)
 
 
-def quiet_level(c: Carry, block, base, motion):
-    """|x_g''| below which nothing happens: a block at rest on a fixed base
-    uplifts (or slides) only where |x_g''| reaches its `rest_level`; 0 while
-    it rocks; None on an isolated base (its state moves)."""
+def quiet_level(c: Carry, block, base, motion, at_g: bool = False):
+    """|x_g''| below which nothing happens from c.t on: a block at rest on a
+    fixed base uplifts (or slides) only where |x_g''| reaches its
+    `rest_level` at the least g_eff from c.t on (`least_gravity_from`;
+    `at_g`: at g, for `KinkClip` to lower step by step, `level_from`); 0
+    while it rocks; None on an isolated base (its state moves)."""
     if not fixed_base(base):
         return None
-    resting = c.phase == Phase.TRANSLATION
-    return jnp.where(resting, rest_level(block, c.slid, motion.least_gravity), 0.0)
+    gravity = GRAVITY if at_g else motion.least_gravity_from(c.t)
+    return jnp.where(
+        c.phase == Phase.TRANSLATION, rest_level(block, c.slid, gravity), 0.0
+    )
 
 
 def quiet_end(t, block, base, motion, slid):
@@ -263,7 +268,7 @@ def quiet_end(t, block, base, motion, slid):
     `carries_quiet_end`; else None."""
     if not carries_quiet_end(base, motion):
         return None
-    return motion.quiet_end(t, rest_level(block, slid, motion.least_gravity))
+    return motion.quiet_end(t, rest_level(block, slid, motion.least_gravity_from(t)))
 
 
 # A redo ends at least this long (s) before the event it replaces.
@@ -272,19 +277,24 @@ REDO_MARGIN = 1e-9
 
 def redo_limit(t0, t, candidates, start_values, event_values):
     """Where a redo ends (inf: none) when conditions among `candidates` (all
-    but the one that fired) went from > 0 at t0 to < 0 at the event t: their
-    roots came first.
+    but the one that fired) are < 0 at the event t: their roots came first.
 
-    Half-way from the earliest of their roots (secant estimates) to t: the redo
-    integrates its last step differently, and a root close to t could move
-    before a limit just short of it (a slow impact moved by 3e-8 s); if an
-    estimate is late, the redo ends without the earlier root, and the next
-    segment repeats this from closer.
+    Half-way from the earliest of their roots (secant estimates from t0) to
+    t: the redo integrates its last step differently, and a root close to t
+    could move before a limit just short of it (a slow impact moved by 3e-8
+    s); if an estimate is late, the redo ends without the earlier root, and
+    the next segment repeats this from closer. A condition <= 0 at t0 is on
+    its boundary there (an event of its own, e.g. a base peak, began the
+    segment): it rose and crossed again before t, and its root is taken at
+    t0 (the redo ends half-way).
     """
     limit = jnp.asarray(jnp.inf, dtype=t.dtype)
     for candidate, v0, v1 in zip(candidates, start_values, event_values):
-        earlier = candidate & (v0 > 0) & (v1 < 0)
-        root = t0 + (t - t0) * v0 / jnp.where(earlier, v0 - v1, 1.0)
+        earlier = candidate & (v1 < 0)
+        rose = v0 > 0
+        root = t0 + (t - t0) * jnp.where(rose, v0, 0.0) / jnp.where(
+            earlier & rose, v0 - v1, 1.0
+        )
         limit = jnp.where(earlier, jnp.minimum(limit, 0.5 * (root + t)), limit)
     return jnp.where(jnp.isinf(limit), limit, jnp.minimum(limit, t - REDO_MARGIN))
 

@@ -17,7 +17,7 @@ about the scene that choose a code path:
 - `has_vertical`: the ground moves vertically too; g_eff = g + a_v(t) then
   enters the equations, the uplift level and a `weight_borne` isolator's
   force, and every shortcut for a block at rest uses its level at the least
-  g_eff (`AbstractSignal.least_gravity`).
+  g_eff from its time on (`AbstractSignal.least_gravity_from`).
 - `carries_quiet_end`: under a record, a block at rest on a fixed base
   skips samples to its next possible uplift, found in the record's table of
   peaks and carried from step to step.

@@ -79,6 +79,24 @@ class AbstractSignal(AbstractAcceleration):
         a shortcut for a block at rest is scaled by least_gravity / g."""
         return GRAVITY
 
+    def least_gravity_from(self, t):
+        """A lower bound of g_eff from t on (m/s^2): `least_gravity`, or g
+        once a vertical motion that ends before the horizontal one has
+        ended (the level of the shortcuts for a block at rest, which an
+        underestimate of g_eff lowers: steps then end where |x_g''| is near
+        a level far below the block's)."""
+        del t
+        return self.least_gravity
+
+    def level_from(self, level, t):
+        """A block's rest level at g (`rest_level`, m/s^2) at the least g_eff
+        from t on: times `least_gravity_from(t)` / g (the level itself
+        without a vertical motion)."""
+        least = self.least_gravity_from(t)
+        if isinstance(least, float) and least == GRAVITY:
+            return level
+        return level * (least / GRAVITY)
+
     def gravity_bound(self, t0, t1):
         """A lower bound of g_eff over [t0, t1] (m/s^2; -inf when none is
         cheap): g plus a lower bound of a_v (the rest rule reads it)."""
@@ -99,8 +117,9 @@ class AbstractSignal(AbstractAcceleration):
         `limits_steps`. `quiet_below` (m/s^2; a lane's own level, 0 for a
         rocking lane): a block at rest on a fixed base uplifts only where
         |x_g''| reaches it, so a step may end anywhere before |x_g''| could
-        reach it and must end before it. `quiet_end`: a record's
-        `quiet_end(t0, level)` of an earlier t0 <= t, read where
+        reach it and must end before it.
+        `quiet_end`: a record's `quiet_end(t0, level)` of an earlier t0 <= t,
+        read where
         `quiet_holds(t, quiet_end)` (None: search)."""
 
     @abc.abstractmethod
@@ -174,6 +193,12 @@ class ClosedFormSignal(AbstractSignal):
         if not isinstance(self.motion, WithVertical):
             return GRAVITY
         return GRAVITY - self.motion.vertical.peak_acceleration_bound
+
+    def least_gravity_from(self, t):
+        if not isinstance(self.motion, WithVertical):
+            return GRAVITY
+        ended = t >= self.motion.vertical.end_time
+        return jnp.where(ended, GRAVITY, self.least_gravity)
 
     def gravity_bound(self, t0, t1):
         if not isinstance(self.motion, WithVertical):

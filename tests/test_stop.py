@@ -10,6 +10,7 @@ and lifts one that stood still. Maps equal `simulate`.
 """
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import reference as ref
@@ -133,6 +134,28 @@ def test_a_touch_in_a_step_that_another_event_ends_is_kept(period, rtol):
     assert float(one.max_base_displacement) == pytest.approx(
         theirs["max_base_displacement"], rel=1e-5
     )
+
+
+def test_a_redo_ends_half_way_for_a_condition_that_began_on_its_boundary():
+    """`redo_limit` over a segment from t0 = 1 to an event at t = 3: a
+    condition > 0 at t0 and < 0 at t crossed first, at its secant root; one
+    that began on its boundary (<= 0 at t0: an event of its own began the
+    segment) and is < 0 at t rose and crossed again unseen: the redo ends
+    half-way; one > 0 at t, or not a candidate, asks for none."""
+    from jaxrock._model import REDO_MARGIN, redo_limit
+
+    t0, t = jnp.asarray(1.0), jnp.asarray(3.0)
+
+    def limit(candidate, v0, v1):
+        out = redo_limit(t0, t, [jnp.asarray(candidate)], [v0], [v1])
+        return float(out)
+
+    assert limit(True, 1.0, -1.0) == 0.5 * (2.0 + 3.0)  # root at 2 s
+    assert limit(True, -7e-18, -0.5) == 2.0
+    assert limit(True, 0.0, -0.5) == 2.0
+    assert limit(True, -7e-18, 0.5) == float("inf")
+    assert limit(False, 1.0, -1.0) == float("inf")
+    assert limit(True, 1e-300, -1.0) <= 3.0 - REDO_MARGIN
 
 
 def test_history_names_the_stop_and_gradients_go_through():

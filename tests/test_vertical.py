@@ -103,6 +103,24 @@ def test_zero_vertical_changes_nothing(key):
         )
 
 
+def test_a_vertical_part_that_ended_no_longer_lowers_the_rest_level():
+    """A strong vertical pulse (5 m/s^2) that ends at 1 s, under a horizontal
+    pulse that peaks below the block's uplift level but above that level at
+    the least g_eff: once the vertical part has ended, the block at rest
+    takes the steps it takes without one (the level of its shortcuts is the
+    least g_eff from then on), in `simulate` and in maps alike."""
+    horizontal = jr.near_fault_pulse("Northridge JFA/SN")
+    shaken = horizontal.with_vertical(jr.SinePulse(5.0, 1.0))
+    block = jr.Block(4.0, 1.0)
+    assert float(horizontal.peak_acceleration_bound) < block.uplift_acceleration
+    alone = jr.simulate(block, jr.FixedBase(), horizontal)
+    one = jr.simulate(block, jr.FixedBase(), shaken)
+    bm = jr.behavior_map([4.0], [1.0], jr.FixedBase(), shaken)
+    assert int(one.status) == int(bm.status[0, 0]) == jr.Status.SUCCESS
+    assert int(one.outcome) == int(bm.outcome[0, 0]) == jr.Outcome.NO_ROCKING
+    assert int(one.steps) == int(bm.steps[0, 0]) < 2 * int(alone.steps)
+
+
 def test_free_flight_stops_the_analysis():
     """A vertical pulse whose trough passes -g: the analysis stops where the
     reference finds g_eff = 0, with `Status.FREE_FLIGHT`, in `simulate` and
