@@ -9,6 +9,7 @@ import numpy as np
 
 from ._files import atomic_write
 from ._labeled import ATTRS, Coordinates, dataset, read, suffix, write
+from ._misc import is_count
 from ._results import RESPONSE_FIELDS, Outcome, Status
 
 _FIELDS = RESPONSE_FIELDS
@@ -88,6 +89,12 @@ class BehaviorMap(eqx.Module):
         keeps the records' names unless the axis is the suite's."""
         if self.outcome.ndim < 3:
             raise ValueError("the map has no leading batch axis to select from")
+        n = self.outcome.shape[0]
+        if not is_count(index) or not -n <= index < n:
+            raise ValueError(
+                f"`index` must be an integer in [{-n}, {n}), got {index!r}"
+            )
+        index = int(index) % n
         fields = {k: getattr(self, k)[index] for k in _FIELDS}
         names, c = self.motion_names, self._coordinates()
         if self.coordinates is None:  # (read from a file without them) a guess

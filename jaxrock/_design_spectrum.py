@@ -127,7 +127,7 @@ def eurocode8_spectrum(
     """
     periods = _check_periods(periods)
     ag = _number("ag", ag)
-    if spectrum_type not in _EUROCODE8:
+    if isinstance(spectrum_type, bool) or spectrum_type not in _EUROCODE8:
         raise ValueError(f"`spectrum_type` must be 1 or 2, got {spectrum_type!r}")
     if ground_type not in _EUROCODE8[spectrum_type]:
         raise ValueError(

@@ -59,11 +59,11 @@ def fit_lognormal(im, failed, *, trials=None):
     Args:
         im: the intensity measure of each analysis, or of each level with
             `trials` (any unit), a 1-D array of values > 0.
-        failed: whether each analysis failed (bool), a 1-D array of the same
-            length; with `trials`, the number of failures at each level
-            (integers from 0 to `trials`).
+        failed: whether each analysis failed (bool, or 0 and 1), a 1-D array
+            of the same length; with `trials`, the number of failures at each
+            level (integers from 0 to `trials`).
         trials: None (binary outcomes), or the number of analyses at each
-            level (integers >= 1; one number for every level): the binomial
+            level (integers >= 1; one number, or one per level): the binomial
             likelihood of a multiple-stripe analysis.
 
     Returns:
@@ -98,9 +98,20 @@ def fit_lognormal(im, failed, *, trials=None):
         )
     positive("im", im)
     if trials is None:
-        count = np.asarray(failed, dtype=bool).astype(float)
+        count = np.asarray(failed, dtype=float)
+        bad = (count != 0) & (count != 1)
+        if bad.any():
+            raise ValueError(
+                "`failed` must be booleans (or 0 and 1) without `trials`, got "
+                f"{count[bad][:3].tolist()}"
+            )
         total = np.ones_like(im)
     else:
+        if np.shape(trials) not in ((), im.shape):
+            raise ValueError(
+                "`trials` must be one number or one per level of `im`, got shape "
+                f"{np.shape(trials)} for {im.size} levels"
+            )
         total = np.broadcast_to(np.asarray(trials, dtype=float), im.shape)
         count = np.asarray(failed, dtype=float)
         if not np.all((total >= 1) & (total == np.round(total))):
@@ -409,7 +420,7 @@ class Fragility(eqx.Module):
         else:
             index = self._state_index(which)
             median, beta = self.median_damage[index], self.beta_damage[index]
-        im = np.asarray(im)
+        im = _intensities(im)
         if beta == 0:
             return np.where(im > median, 1.0, np.where(im < median, 0.0, 0.5))
         return np.asarray(norm.cdf(np.log(im / median) / beta))
@@ -464,7 +475,7 @@ class Fragility(eqx.Module):
         count = int(members.max()) + 1
         if im is None:
             im = np.geomspace(self.im.min(), self.im.max(), 200)
-        im = np.asarray(im, dtype=float)
+        im = _intensities(im)
         log_im = np.log(self.im)
         rng = np.random.default_rng(seed)
         fits = []
@@ -819,3 +830,13 @@ def _fitted(bm, im, parsed) -> dict:
         median_damage=fits[:, 0],
         beta_damage=fits[:, 1],
     )
+
+
+def _intensities(im) -> np.ndarray:
+    """`im` (intensities at which to read a curve) as floats, each finite
+    and > 0 (`ValueError` naming `im` otherwise; a lognormal curve has no
+    value at IM <= 0)."""
+    im = np.asarray(im, dtype=float)
+    if im.size:
+        positive("im", im)
+    return im

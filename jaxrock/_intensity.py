@@ -147,12 +147,13 @@ def _baseline_corrected(v, d, dt, length):
 
 def _significant_duration(square, dt, low=0.05, high=0.95):
     """D5-95 (s) of each row from the running integral of x_g''^2 at the
-    samples, the times of 5% and 95% of its total linear between samples."""
+    samples, the times of 5% and 95% of its total linear between samples;
+    NaN for a record of zeros, which has none."""
     times = []
     for row, h in zip(square, dt):
         total = row[-1]
         if total <= 0:
-            times.append(0.0)
+            times.append(np.nan)
             continue
         t = h * np.arange(row.size)
         at = np.interp([low * total, high * total], row, t)
@@ -191,7 +192,7 @@ def intensity_measure(
       (m/s^2; `response_spectrum`), e.g. "sa:1.0".
     - "arias": pi / (2 g) times the integral of x_g''^2 (m/s); "cav": the
       integral of |x_g''| (m/s); "d5_95": the time from 5% to 95% of the
-      Arias intensity (s).
+      Arias intensity (s; NaN for a record of zeros).
     - "tp": the pulse period T_p = 1 / f_p (s): a pulse's own, a record's
       from the Mavroeidis-Papageorgiou pulse fitted to its velocity
       (`fit_pulse`: seconds a record; a scale factor does not change it).

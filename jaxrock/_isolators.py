@@ -32,6 +32,20 @@ from ._misc import (
 from ._translation import free_vibration, free_vibration_bounds, translation_tables
 from ._trig import sincos
 
+# The largest mass ratio m / m_b: a base a million times lighter than its
+# block (beyond any isolator; the momentum of an impact loses its digits).
+MAX_MASS_RATIO = 1e6
+
+
+def mass_ratio_constraint(value) -> Constraint:
+    """`mass_ratio` (m / m_b) in (0, `MAX_MASS_RATIO`]."""
+    return Constraint(
+        "mass_ratio",
+        value,
+        lambda v: (v > 0) & (v <= MAX_MASS_RATIO),
+        f"finite, > 0 and <= {MAX_MASS_RATIO:g}",
+    )
+
 
 class Stop(AbstractChecked):
     """A stop at an isolator's `capacity`: a bumper, a moat wall's padding,
@@ -294,7 +308,7 @@ class LinearIsolator(AbstractIsolator):
     Args:
         period: T_s, the isolation period (s), > 0.
         damping: xi, the damping ratio (fraction of critical, -), >= 0.
-        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
 
     Raises:
         ValueError: a concrete parameter that is not a real number or lies
@@ -319,7 +333,7 @@ class LinearIsolator(AbstractIsolator):
         return [
             greater_than_zero("period", self.period),
             at_least_zero("damping", self.damping),
-            greater_than_zero("mass_ratio", self.mass_ratio),
+            mass_ratio_constraint(self.mass_ratio),
         ]
 
     def initial_state(self):
@@ -403,7 +417,7 @@ class AbstractBoucWenIsolator(AbstractIsolator):
     def bouc_wen_constraints(self) -> list[Constraint]:
         """The ranges of the parameters every Bouc-Wen isolator has."""
         return [
-            greater_than_zero("mass_ratio", self.mass_ratio),
+            mass_ratio_constraint(self.mass_ratio),
             greater_than_zero("yield_displacement", self.yield_displacement),
             greater_than_zero("A", self.A),
             finite("gamma", self.gamma),
@@ -616,7 +630,7 @@ class FrictionPendulum(AbstractFrictionPendulum, AbstractClosedFormBoucWen):
     Args:
         friction: mu, the friction coefficient (-), >= 0.
         radius: R, the radius of curvature of the sliding surface (m), > 0.
-        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         yield_displacement: Y (m), > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
         gamma: the Bouc-Wen gamma (-), finite; default 0.9.
@@ -654,7 +668,7 @@ class BilinearIsolator(AbstractClosedFormBoucWen):
             (-), >= 0 (lead-rubber bearings: about 0.03-0.1).
         period: T, the period of the post-yield stiffness (s), > 0.
         yield_displacement: Y (m), > 0 (lead-rubber bearings: about 0.01-0.03).
-        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         A: the Bouc-Wen A (-), > 0; default 1.
         gamma: the Bouc-Wen gamma (-), finite; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
@@ -884,7 +898,7 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
     Args:
         friction: mu, the friction coefficient (-), >= 0.
         radius: R, the radius of curvature of the sliding surface (m), > 0.
-        mass_ratio: m / m_b, block mass over base mass (-), > 0.
+        mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         yield_displacement: Y (m), > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
         gamma: the Bouc-Wen gamma (-), finite; default 0.9.

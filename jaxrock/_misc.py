@@ -212,6 +212,8 @@ def check(name: str, x, ok, allowed: str) -> None:
     value = _concrete(x)
     if value is None:
         return
+    if value.size == 0:  # an empty batch: nothing to analyse
+        raise ValueError(f"`{name}` must hold at least one value, got an empty array")
     try:
         good = np.asarray(ok(value))
     except jax.errors.TracerArrayConversionError:  # `ok` reads a traced parameter

@@ -167,6 +167,10 @@ class Record(AbstractGroundMotion):
                 f"`dt` must have shape {self.batch_shape} (one per record), got "
                 f"{np.shape(self.dt)}"
             )
+        azimuths = self.azimuth if isinstance(self.azimuth, tuple) else [self.azimuth]
+        for azimuth in azimuths:
+            if azimuth is not None and not np.isfinite(real_number("azimuth", azimuth)):
+                raise ValueError(f"`azimuth` must be finite (degrees), got {azimuth}")
 
     def constraints(self):
         n = self.sample_count

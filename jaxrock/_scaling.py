@@ -38,6 +38,12 @@ def factor_to(record, *, pga=None, pgv=None, sa=None) -> np.ndarray:
     target = np.asarray(target, dtype=float)
     if not np.all(np.isfinite(target) & (target > 0)):
         raise ValueError(f"`{name}` must be finite and > 0, got {target.tolist()}")
+    shape = np.shape(record.pga)
+    if target.shape not in ((), shape):
+        raise ValueError(
+            f"`{name}` must be one number or one per record, of shape {shape}, "
+            f"got shape {target.shape}"
+        )
     if name == "sa":
         now = response_spectrum(record, float(period)).pseudo_acceleration[..., 0]
     else:

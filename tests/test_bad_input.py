@@ -15,6 +15,7 @@ from jaxrock import _model
 from jaxrock._scene import prepare
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+_RECORD = jr.Record(np.sin(2 * np.pi * np.arange(0.0, 10.0, 0.01)), 0.01)
 
 
 # -- wrong results reported as normal -------------------------------------------
@@ -122,13 +123,34 @@ def test_traced_valid_parameters_are_unaffected(traced):
         (lambda: jr.Block(True, 1.0), "`slenderness` must be a real number"),
         (lambda: jr.Block(4.0, None), "`size` must be a real number"),
         (lambda: jr.LinearIsolator(2.0, 1 + 2j, 0.5), "`damping` must be a real"),
+        # A base 1e300 times lighter than its block: e0 was NaN, named as f.
+        (lambda: jr.LinearIsolator(2.0, 0.1, 1e300), "`mass_ratio` must be finite, >"),
+        (lambda: jr.FrictionPendulum(0.1, 2.0, 1e7), r"<= 1e\+06, got 1"),
+        (lambda: jr.Record(np.zeros(9), 0.01, azimuth=np.nan), "`azimuth` must be"),
+        (
+            lambda: jr.eurocode8_spectrum([1.0], 2.0, spectrum_type=True),
+            "`spectrum_type` must be 1 or 2",
+        ),
         # A stop's parameters, apart from its isolator's own period and damping.
         (lambda: jr.Stop(0.05, 1.0), "`Stop.damping` must be finite, >= 0 and < 1"),
         (lambda: jr.Stop(-0.05), "`Stop.period` must be finite and > 0"),
         (lambda: jr.MPPulse(1.0, 0.5, 2.0, 0.0, t0=-10.0), "`t0` must be > -gamma"),
         (lambda: jr.SolverOptions(max_steps=2.5), "`max_steps` must be an integer"),
         (lambda: jr.fit_lognormal([1.0, 2.0], [True]), "`im` and `failed`"),
+        (lambda: jr.fit_lognormal([1, 2, 3], [0, np.nan, 1]), "`failed` must be"),
+        (lambda: jr.fit_lognormal([1, 2, 3], [0, 2, 1]), "booleans"),
+        (
+            lambda: jr.fit_lognormal([1, 2, 3], [0, 1, 1], trials=[1, 2]),
+            "`trials` must be one number or one per level",
+        ),
         (lambda: jr.near_fault_pulse("Tabas TAB/SP", scale=-1.0), "`scale` must be"),
+        # An empty batch: no analysis to run (it failed inside a map).
+        (lambda: jr.LinearIsolator(np.array([]), 0.1, 0.5), "`period` must hold"),
+        (lambda: jr.MPPulse(np.array([]), 0.5, 2.0, 0.0), "`amplitude` must hold"),
+        (
+            lambda: jr.FrictionPendulum(0.1, 2.0, 0.5, capacity=np.array([])),
+            "`capacity` must hold at least one value",
+        ),
         (
             lambda: jr.design.isolator_objective(
                 lambda p: jr.LinearIsolator(p["period"], 0.35, 0.5),
@@ -221,6 +243,12 @@ def test_bad_values_name_the_parameter(make, message):
                 3.0, 1.0, jr.LinearIsolator([1.5, 2.0], 0.35, 0.5), PULSE, scales=[1.0]
             ),
             "`base` must be one base",
+        ),
+        # A target of another shape than the records'.
+        (lambda: _RECORD.scaled_to(pga=[1.0, 2.0]), "`pga` must be one number or"),
+        (
+            lambda: jr.Record.stack([_RECORD, _RECORD]).scaled_to(pgv=[1, 2, 3]),
+            r"one per record, of shape \(2,\), got shape \(3,\)",
         ),
     ],
 )
@@ -345,6 +373,12 @@ def test_a_member_of_a_batch_is_labelled_by_its_parameters():
     bm = jr.behavior_map([3.0], [1.0], jr.FixedBase(), pulses, progress=False)
     assert bm.select(1).motion == f"{bm.motion} [amplitude = 2 m/s]"
     assert bm.select(1).base == bm.base
+    assert bm.select(-1).motion == bm.select(1).motion
+    for index in (2, -3, True, None, 1.0, "A", slice(0, 1), [0, 1]):
+        with pytest.raises(
+            ValueError, match=r"`index` must be an integer in \[-2, 2\)"
+        ):
+            bm.select(index)
 
 
 def test_history_step_that_is_not_one_number_is_named():

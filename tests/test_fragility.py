@@ -49,6 +49,11 @@ def test_fragility_of_a_block_under_scaled_pulse():
     assert frag.median_rocking == pytest.approx(np.sqrt(below * above), rel=1e-12)
     step = frag.probability([below, frag.median_rocking, above], "rocking")
     np.testing.assert_array_equal(step, [0.0, 0.5, 1.0])
+    # No curve, smooth or a step, has a value at IM <= 0 or NaN.
+    for im in (np.nan, -1.0, 0.0):
+        for which in ("rocking", "overturning"):
+            with pytest.raises(ValueError, match="`im` must be finite and > 0"):
+                frag.probability(im, which)
     # Damage states: each its own fit, read off the results, nested.
     assert frag.damage_states == (
         "uplift",

@@ -47,6 +47,15 @@ def test_measures_of_a_record_match_integrals_on_a_fine_grid(record):
     assert im["sa:0.3"] == spectrum.pseudo_acceleration[0]
 
 
+def test_a_record_of_zeros_has_no_significant_duration():
+    """D5-95 of a record without energy is NaN, not 0 s; its peaks and
+    integrals are 0."""
+    zeros = jr.Record(np.zeros(100), 0.01)
+    assert np.isnan(float(jr.intensity_measure(zeros, "d5_95")))
+    for measure in ("pga", "pgv", "arias", "cav"):
+        assert float(jr.intensity_measure(zeros, measure)) == 0.0
+
+
 def jr_measures():
     return ["pga", "pgv", "pgd", "arias", "cav", "d5_95", "sa:0.3"]
 
