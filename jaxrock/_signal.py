@@ -117,9 +117,8 @@ class AbstractSignal(AbstractAcceleration):
         `limits_steps`. `quiet_below` (m/s^2; a lane's own level, 0 for a
         rocking lane): a block at rest on a fixed base uplifts only where
         |x_g''| reaches it, so a step may end anywhere before |x_g''| could
-        reach it and must end before it.
-        `quiet_end`: a record's `quiet_end(t0, level)` of an earlier t0 <= t,
-        read where
+        reach it and must end before it. `quiet_end`: a record's
+        `quiet_end(t0, level)` of an earlier t0 <= t, read where
         `quiet_holds(t, quiet_end)` (None: search)."""
 
     @abc.abstractmethod
