@@ -26,6 +26,7 @@ from ._misc import (
     describe_values,
     finite,
     greater_than_zero,
+    nonempty,
     parameter,
     real_number,
 )
@@ -150,6 +151,7 @@ class AbstractIsolator(AbstractChecked):
 
     def __check_init__(self):
         if self.capacity is not None:
+            nonempty("capacity", self.capacity)
             check("capacity", self.capacity, lambda v: v > 0, "finite and > 0 (m)")
         if self.stop is not None:
             if not isinstance(self.stop, Stop):

@@ -185,6 +185,7 @@ class AbstractChecked(eqx.Module):
 
     def __check_init__(self):
         for c in self.constraints():
+            nonempty(c.name, c.value)
             check(c.name, c.value, c.ok, c.allowed)
 
     def valid(self) -> Bool[Array, ""]:
@@ -203,6 +204,13 @@ def _concrete(x):
     return np.asarray(x)
 
 
+def nonempty(name: str, x) -> None:
+    """Raise `ValueError` naming `name` if `x` is an empty array: a batch of
+    no parameters, which would make an analysis of nothing."""
+    if np.size(_concrete(x)) == 0:
+        raise ValueError(f"`{name}` must hold at least one value, got an empty array")
+
+
 def check(name: str, x, ok, allowed: str) -> None:
     """Raise `ValueError` naming `name` and the allowed range unless `ok(x)` holds.
 
@@ -212,8 +220,6 @@ def check(name: str, x, ok, allowed: str) -> None:
     value = _concrete(x)
     if value is None:
         return
-    if value.size == 0:  # an empty batch: nothing to analyse
-        raise ValueError(f"`{name}` must hold at least one value, got an empty array")
     try:
         good = np.asarray(ok(value))
     except jax.errors.TracerArrayConversionError:  # `ok` reads a traced parameter
