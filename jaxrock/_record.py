@@ -14,7 +14,6 @@ from ._misc import (
     GRAVITY,
     Constraint,
     describe_values,
-    greater_than_zero,
     in_range,
     parameter,
     real_number,
@@ -30,6 +29,10 @@ from ._misc import (
 # sample every second describes nothing faster than 0.5 Hz, and the bound
 # keeps the end time, (n - 1) dt, finite (at dt = 1e308 it is inf).
 DT_MIN, DT_MAX = 1e-6, 1.0
+# The largest |x_g''| of a record's samples (m/s^2, 10,000 g), and the largest
+# scale factor: far beyond any ground motion, far below where the squares of
+# its Arias intensity overflow.
+MAX_ACCELERATION, MAX_FACTOR = 1e5, 1e6
 
 
 def _labels(value, n):
@@ -178,8 +181,8 @@ class Record(AbstractGroundMotion):
             Constraint(
                 "acceleration",
                 self.unscaled,
-                lambda v: v == v,
-                "finite (no NaN or inf)",
+                lambda v: abs(v) <= MAX_ACCELERATION,
+                f"finite and within +-{MAX_ACCELERATION:g} m/s^2",
             ),
             in_range("dt", self.dt, DT_MIN, DT_MAX, "s"),
             Constraint(
@@ -187,14 +190,21 @@ class Record(AbstractGroundMotion):
             ),
         ]
         if self.factor is not None:
-            out.append(greater_than_zero("factor", self.factor))
+            out.append(
+                Constraint(
+                    "factor",
+                    self.factor,
+                    lambda v: (v > 0) & (v <= MAX_FACTOR),
+                    f"finite, > 0 and <= {MAX_FACTOR:g}",
+                )
+            )
         if self.vertical is not None:
             out.append(
                 Constraint(
                     "vertical",
                     self.vertical,
-                    lambda v: v == v,
-                    "finite (no NaN or inf)",
+                    lambda v: abs(v) <= MAX_ACCELERATION,
+                    f"finite and within +-{MAX_ACCELERATION:g} m/s^2",
                 )
             )
         return out

@@ -127,6 +127,9 @@ def test_traced_valid_parameters_are_unaffected(traced):
         (lambda: jr.LinearIsolator(2.0, 0.1, 1e300), "`mass_ratio` must be finite, >"),
         (lambda: jr.FrictionPendulum(0.1, 2.0, 1e7), r"<= 1e\+06, got 1"),
         (lambda: jr.Record(np.zeros(9), 0.01, azimuth=np.nan), "`azimuth` must be"),
+        # Beyond any ground motion (its Arias intensity overflowed to NaN).
+        (lambda: jr.Record([0, 1e300, 0], 0.01), r"within \+-100000 m/s\^2"),
+        (lambda: _RECORD.scaled(1e308), r"`factor` must be finite, > 0 and <= 1e\+06"),
         (
             lambda: jr.eurocode8_spectrum([1.0], 2.0, spectrum_type=True),
             "`spectrum_type` must be 1 or 2",
