@@ -70,8 +70,8 @@ def is_vertical(record: "Record") -> bool:
 
 
 class Record(AbstractGroundMotion):
-    """A recorded accelerogram: `acceleration` (m/s^2) sampled every `dt` (s),
-    from 1e-6 to 1 s.
+    """A recorded accelerogram: `acceleration` (m/s^2, each sample within
+    +-1e5) sampled every `dt` (s), from 1e-6 to 1 s.
 
     Sample k is at t = k dt; x_g'' is linear between samples and zero after
     the last one. A suite (`Record.stack`) holds several records along leading
@@ -80,9 +80,9 @@ class Record(AbstractGroundMotion):
     (`scaled`, `scaled_to`) keeps the unscaled samples and a factor per
     record: the samples of a suite at many intensities are stored once, and
     `samples` multiplies them out. `factor` (keyword) builds one: a factor
-    per record of the batch (> 0), whose shape is the batch's and ends with
-    the leading axes of `acceleration`; `dt` and `length` then have the
-    batch's shape.
+    per record of the batch (> 0 and <= 1e6), whose shape is the batch's and
+    ends with the leading axes of `acceleration`; `dt` and `length` then have
+    the batch's shape.
 
     `vertical` (keyword, m/s^2, positive upward) holds the ground's vertical
     acceleration at the same samples (`with_vertical` pairs two records, or
