@@ -37,7 +37,6 @@ import optimistix as optx
 from jaxtyping import Array, Float
 
 from ._dynamics import (
-    STOP_ROUNDING,
     Args,
     Phase,
     absolute_base_acceleration,
@@ -164,19 +163,12 @@ def condition_slide(t, y, args: Args, **kwargs):
 
 
 def condition_stop(t, y, args: Args, **kwargs):
-    """|u| - capacity against the stop, capacity + 2 d - |u| off it
-    (`in_stop`, m; d = `STOP_ROUNDING` capacity): <= 0 where the base meets
-    or leaves its stop, the kink of its force (isolators with a `stop`).
-
-    Off the stop the condition is > d at the segment's start, even where the
-    segment starts at a located exit (whose gap lies within d of 0): the
-    next touch, on either side, is a crossing from > 0 that the steps and
-    `redo_limit` both see, also when another event ends the same step. A
-    touch is then located 2 d past the capacity (1e-10 m for a capacity of
-    0.05 m), far below what the tolerances see."""
+    """|u| - capacity against the stop, capacity - |u| off it (`in_stop`,
+    m): <= 0 where the base meets or leaves its stop, the kink of its force
+    (isolators with a `stop`)."""
     del t, kwargs
     gap = jnp.abs(y[2][0]) - args.base.capacity
-    return jnp.where(args.in_stop, gap, 2.0 * STOP_ROUNDING * args.base.capacity - gap)
+    return jnp.where(args.in_stop, gap, -gap)
 
 
 def condition_flight(t, y, args: Args, **kwargs):
