@@ -98,33 +98,46 @@ def fit_lognormal(im, failed, *, trials=None):
         )
     positive("im", im)
     if trials is None:
-        count = np.asarray(failed, dtype=float)
-        bad = (count != 0) & (count != 1)
-        if bad.any():
-            raise ValueError(
-                "`failed` must be booleans (or 0 and 1) without `trials`, got "
-                f"{count[bad][:3].tolist()}"
-            )
-        total = np.ones_like(im)
+        count, total = _binary(failed), np.ones_like(im)
     else:
-        if np.shape(trials) not in ((), im.shape):
-            raise ValueError(
-                "`trials` must be one number or one per level of `im`, got shape "
-                f"{np.shape(trials)} for {im.size} levels"
-            )
-        total = np.broadcast_to(np.asarray(trials, dtype=float), im.shape)
-        count = np.asarray(failed, dtype=float)
-        if not np.all((total >= 1) & (total == np.round(total))):
-            raise ValueError(
-                f"`trials` must be whole numbers >= 1, got {np.unique(total).tolist()}"
-            )
-        bad = ~((count >= 0) & (count <= total) & (count == np.round(count)))
-        if bad.any():
-            raise ValueError(
-                "`failed` must count the failures of each level, whole numbers "
-                f"from 0 to `trials`, got {count[bad].tolist()}"
-            )
+        count, total = _binomial(failed, trials, im.size)
     return _fit_counts(np.log(im), count, total)
+
+
+def _binary(failed) -> np.ndarray:
+    """`fit_lognormal`'s binary outcomes as counts of 0 and 1 (`ValueError`
+    for anything else, NaN included)."""
+    count = np.asarray(failed, dtype=float)
+    bad = (count != 0) & (count != 1)
+    if bad.any():
+        raise ValueError(
+            "`failed` must be booleans (or 0 and 1) without `trials`, got "
+            f"{count[bad][:3].tolist()}"
+        )
+    return count
+
+
+def _binomial(failed, trials, levels: int):
+    """`fit_lognormal`'s failures and trials of each of `levels` levels, as
+    floats (`ValueError` naming the one out of range)."""
+    if np.shape(trials) not in ((), (levels,)):
+        raise ValueError(
+            "`trials` must be one number or one per level of `im`, got shape "
+            f"{np.shape(trials)} for {levels} levels"
+        )
+    total = np.broadcast_to(np.asarray(trials, dtype=float), (levels,))
+    count = np.asarray(failed, dtype=float)
+    if not np.all((total >= 1) & (total == np.round(total))):
+        raise ValueError(
+            f"`trials` must be whole numbers >= 1, got {np.unique(total).tolist()}"
+        )
+    bad = ~((count >= 0) & (count <= total) & (count == np.round(count)))
+    if bad.any():
+        raise ValueError(
+            "`failed` must count the failures of each level, whole numbers "
+            f"from 0 to `trials`, got {count[bad].tolist()}"
+        )
+    return count, total
 
 
 def _fit_counts(log_im, count, total):

@@ -285,14 +285,26 @@ def behavior_map(
     own = _restitution(restitution_factor, restitution, lam, base)
     friction = _friction(friction)
     grid = _checked_grid(lam, r, base, motion, own, friction)
-    chunk_size = _layout.chunk_size(
-        chunk_size, store is not None or executor is not None
-    )
+    devices, plan = _plan(grid, chunk_size, devices, store, executor)
+    duration = as_float(duration)
+    runner = _ChunkRunner(grid, duration, opts, plan[1], devices, executor)
+    return _computed(runner, grid, plan, store, progress, duration, opts)
+
+
+def _plan(grid: Grid, chunk_size, devices, store, executor):
+    """The devices that run the map's chunks (given, or by default
+    `_layout.map_devices`; an executor's: the local ones, as its workers'),
+    and its chunk plan, (cells a chunk, padded, chunks)."""
+    units = store is not None or executor is not None  # chunks kept or sent out
+    chunk_size = _layout.chunk_size(chunk_size, units)
     if devices is None:
         devices = jax.local_devices() if executor else _layout.map_devices(grid.n)
-    chunk, padded, chunks = _layout.chunk_plan(grid.n, chunk_size, devices)
-    duration = as_float(duration)
-    runner = _ChunkRunner(grid, duration, opts, padded, devices, executor)
+    return devices, _layout.chunk_plan(grid.n, chunk_size, devices)
+
+
+def _computed(runner, grid: Grid, plan, store, progress, duration, opts):
+    """The map: its chunks run (those of `store` read back) and assembled."""
+    chunk, _, chunks = plan
     if store is not None:
         key = grid.store_key(duration, chunk, opts)
         store = ChunkStore(store, key, _FIELDS + ("index", "executed", "useful"))
@@ -300,8 +312,7 @@ def behavior_map(
         progress = chunks > 1
     t = time.perf_counter()
     results, useful, executed = _run(runner, grid, chunk, chunks, store, progress)
-    seconds = time.perf_counter() - t
-    return _assemble(grid, results, seconds, useful, executed)
+    return _assemble(grid, results, time.perf_counter() - t, useful, executed)
 
 
 def _devices(devices, executor) -> list | None:
