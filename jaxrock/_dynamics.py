@@ -47,6 +47,10 @@ class Args(eqx.Module):
     slid: jnp.ndarray | None = None
     # The base is against its stop (`in_stop`); None: the base has none.
     in_stop: jnp.ndarray | None = None
+    # A bound of the segment's steps (s; inf: none), and the time of a peak
+    # of |u| located at the segment's start (nan: none): `condition_base`.
+    step_bound: jnp.ndarray | None = None
+    peak_time: jnp.ndarray | None = None
 
 
 def _geometry(block, theta, s):

@@ -143,10 +143,29 @@ def condition_guard(t, y, args: Args, **kwargs):
 
 
 def condition_base(t, y, args: Args, **kwargs):
-    """max(d|u|/dt, max|u| so far - |u|): <= 0 only at a new maximum of |u|."""
-    del t, kwargs
+    """g = max(d|u|/dt, max|u| so far - |u| - |u'| H) (m/s, m): <= 0 at a new
+    maximum of |u|, and at the end of a step that passed one.
+
+    H (`Args.step_bound`, s) bounds the steps. A step that passes a peak P
+    above max|u| and ends, moving inward, with |u| below max|u| again ends
+    at g < 0 all the same: |u| >= P - |u'| H there while |u''| keeps its
+    sign past the peak. Its root is the peak (d|u|/dt = 0). The cost: an
+    event at a reversal of u within about |u''| H^2 / 2 below max|u|, which
+    leaves max|u| as it was. After the ground stops (H = inf), every
+    reversal of u outward is an event.
+
+    Just past a located peak g < 0 for about 2H: at a peak located at the
+    segment's start (`Args.peak_time`) g is taken <= 0, so that it fires
+    only once it was > 0 again.
+    """
+    del kwargs
     u, u_dot = y[2][0], y[2][1]
-    return jnp.maximum(jnp.sign(u) * u_dot, args.max_base_displacement - jnp.abs(u))
+    outward = jnp.sign(u) * u_dot
+    bounded = jnp.isfinite(args.step_bound)
+    reach = jnp.abs(u_dot) * jnp.where(bounded, args.step_bound, 0.0)
+    below = args.max_base_displacement - jnp.abs(u) - reach
+    g = jnp.where(bounded, jnp.maximum(outward, below), outward)
+    return jnp.where(t == args.peak_time, jnp.minimum(g, 0.0), g)
 
 
 def condition_slide(t, y, args: Args, **kwargs):

@@ -231,8 +231,15 @@ def segment_args(c: Carry, block, base, motion, t=None) -> Args:
     """What the vector field and the conditions of the carry's segment read
     (at t, by default the carry's)."""
     t = c.t if t is None else t
-    args = (c.phase, c.sign, c.max_u, t >= motion.end_time, c.theta_ref, c.slid)
-    return Args(block, base, motion, *args, in_stop(c.y[2], base))
+    ended = t >= motion.end_time
+    args = (c.phase, c.sign, c.max_u, ended, c.theta_ref, c.slid)
+    if fixed_base(base):
+        return Args(block, base, motion, *args)
+    step_bound = jnp.where(ended, jnp.inf, motion.step_bound)
+    peak_time = jnp.where(c.kind == EventKind.BASE_PEAK, c.t, jnp.nan)
+    return Args(
+        block, base, motion, *args, in_stop(c.y[2], base), step_bound, peak_time
+    )
 
 
 def with_start_conditions(c: Carry, block, base, motion) -> Carry:
@@ -656,11 +663,18 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     if limit is None:
         _, args, named, *_ = segment_setup(c, block, base, motion, duration, opts)
         conditions = jax.tree_util.tree_leaves(named)
+        starts = [cond(c.t, c.y, args) for cond in conditions]
+        # `condition_base` starts <= 0 just past a peak, not on its boundary:
+        # it is a candidate only where it started > 0.
+        candidates = [
+            ~m & (v0 > 0) if cond is condition_base else ~m
+            for cond, m, v0 in zip(conditions, sol.event_mask, starts)
+        ]
         limit = redo_limit(
             c.t,
             end.t,
-            [~m for m in sol.event_mask],
-            [cond(c.t, c.y, args) for cond in conditions],
+            candidates,
+            starts,
             [cond(end.t, end.y, args) for cond in conditions],
         )
     redo = active & end.event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)

@@ -68,6 +68,13 @@ class AbstractSignal(AbstractAcceleration):
     def max_step(self) -> Float[Array, ""] | None:
         """Largest step while the ground moves (s); None: no limit."""
 
+    @property
+    def step_bound(self) -> Float[Array, ""]:
+        """A bound of every step while the ground moves (s; inf: none), for
+        the conditions that must see what a step may hide (`condition_base`):
+        `max_step`."""
+        return jnp.inf if self.max_step is None else self.max_step
+
     @abc.abstractmethod
     def valid(self) -> Bool[Array, ""]:
         """The motion's parameters in range (traceable)."""
@@ -363,6 +370,10 @@ class RecordSignal(AbstractSignal):
     @property
     def max_step(self):
         return None
+
+    @property
+    def step_bound(self):
+        return self._dt  # (its steps end at the samples)
 
     def _vertical_view(self) -> "RecordSignal":
         """The vertical samples read as a record's (the same dt, length,

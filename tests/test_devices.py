@@ -62,7 +62,8 @@ def accelerator_loop(monkeypatch):
 
 def test_an_accelerators_loop_gives_the_same_map(linear_map, accelerator_loop):
     """On a GPU the lanes that end a step have their events located together,
-    not in batches of eight: every number of the map is the same."""
+    not in batches of eight: the same outcomes and counts, and the same
+    floats to rounding (XLA compiles the two batch shapes' arithmetic apart)."""
     again = jr.behavior_map(
         linear_map.slenderness,
         linear_map.size,
@@ -72,6 +73,8 @@ def test_an_accelerators_loop_gives_the_same_map(linear_map, accelerator_loop):
         progress=False,
     )
     for k in jr._maps._FIELDS:
-        np.testing.assert_array_equal(
-            getattr(again, k), getattr(linear_map, k), err_msg=k
-        )
+        mine, theirs = getattr(again, k), getattr(linear_map, k)
+        if np.issubdtype(np.asarray(theirs).dtype, np.floating):
+            np.testing.assert_allclose(mine, theirs, rtol=1e-13, err_msg=k)
+        else:
+            np.testing.assert_array_equal(mine, theirs, err_msg=k)

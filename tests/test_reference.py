@@ -276,3 +276,25 @@ def test_new_isolators_under_a_record_match_reference(two_records, kind):
         )
         rocked += theirs["outcome"] > 0
     assert rocked >= 1
+
+
+@pytest.mark.parametrize("dt, frequency", [(0.04, 1.225), (0.01, 1.475)])
+def test_a_peak_of_abs_u_inside_a_step_is_located(dt, frequency):
+    """A block at rest on the linear isolator under a sine whose amplitude
+    ramps up over 8 s: each peak of |u| passes the last by a little and can
+    fall back below it within one step (a sample's dt). `simulate` and the
+    map locate it, and agree with the reference's max |u|."""
+    t = np.arange(0.0, 12.0 + dt / 2, dt)
+    samples = 1.5 * np.sin(2 * np.pi * frequency * t) * np.minimum(t / 8.0, 1.0)
+    samples[-1] = 0.0
+    record = jr.Record(samples, dt, name="ramped sine")
+    base = jr.LinearIsolator(1.5, 0.2, 0.7)
+    r = jr.simulate(jr.Block(4.0, 0.4), base, record, duration=14.0)
+    bm = jr.behavior_map([4.0], [0.4], base, record, duration=14.0, progress=False)
+    acc, _, breaks = ref.record(samples, dt)
+    theirs = ref.simulate(
+        4.0, 0.4, ("linear", 1.5, 0.2, 0.7), acc, 14.0, dt, breaks=breaks
+    )
+    assert int(r.outcome) == int(bm.outcome[0, 0]) == theirs["outcome"]
+    for mine in (float(r.max_base_displacement), bm.max_base_displacement[0, 0]):
+        np.testing.assert_allclose(mine, theirs["max_base_displacement"], rtol=1e-6)
