@@ -96,12 +96,8 @@ def test_map_equals_simulate(key):
             assert bm.max_rotation[i, j] == pytest.approx(
                 float(one.max_rotation), rel=1e-6
             )
-            # A new peak of |u| that passes the last one by less than the
-            # motion of a step may fall between two step ends, which the
-            # engines place differently (here one of them misses a peak
-            # 2e-6 m above the last: the reference agrees with the map).
             assert bm.max_base_displacement[i, j] == pytest.approx(
-                float(one.max_base_displacement), rel=1e-4
+                float(one.max_base_displacement), rel=1e-6
             )
 
 
