@@ -438,8 +438,33 @@ class RecordSignal(AbstractSignal):
     def acceleration_bound(self, t0, t1):
         """max |x_g''| over [t0, t1]: x_g'' is linear between samples, so the
         largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
-        at most `_BOUND_SAMPLES` samples after t0 (inf for a longer interval)."""
-        return self._extreme(t0, t1, jnp.abs)
+        at most `_BOUND_SAMPLES` samples after t0; over a longer interval,
+        from the table of peaks (inf without one)."""
+        near = self._extreme(t0, t1, jnp.abs)
+        if self.peaks is None:
+            return near
+        return jnp.where(jnp.isinf(near), self._peak_bound(t0, t1), near)
+
+    def _peak_bound(self, t0, t1):
+        """max |x_g''| over [t0, t1] from the table of peaks: the samples
+        strictly inside, [i, j], are the union of the two ranges of 2^l
+        samples from i and to j (2^l <= j - i + 1 < 2^(l+1)), and the ends."""
+        n, dt = self.sample_count, self._dt
+        i = jnp.clip(jnp.floor(t0 / dt) + 1.0, 0, n - 1).astype(int)
+        j = jnp.clip(jnp.ceil(t1 / dt) - 1.0, 0, n - 1).astype(int)
+        count = jnp.maximum(j - i + 1, 1)
+        width_log = jnp.floor(jnp.log2(1.0 * count)).astype(int)
+        # (log2 rounded either way at a power of two)
+        width_log = width_log + (2 ** (width_log + 1) <= count)
+        width_log = width_log - (2**width_log > count)
+        factor = self.record.factor
+        scale = 1.0 if factor is None else self._of_batch(factor)
+        first = self._read(self.peaks, width_log, i)
+        last = self._read(self.peaks, width_log, jnp.maximum(j - 2**width_log + 1, 0))
+        ends = jnp.maximum(
+            jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
+        )
+        return jnp.maximum(ends, scale * jnp.maximum(first, last))
 
     def _extreme(self, t0, t1, of):
         """max of of(x_g'') over [t0, t1] (`acceleration_bound` with `of`

@@ -315,3 +315,30 @@ def test_fema_p695_component_names_without_degrees():
     assert by_component["NORTHR/MUL009"].azimuth == 9
     assert by_component["CHICHI/CHY101-E"].azimuth is None
     assert by_component["LANDERS/CLW-LN"].azimuth is None
+
+
+def test_a_records_acceleration_bound_is_its_largest_value():
+    """`acceleration_bound(t0, t1)` of a record is max |x_g''| over [t0, t1]
+    (x_g'' linear between samples: the samples inside and the ends), to
+    rounding, over short intervals (read sample by sample) and long ones
+    (from the table of peaks), of a record and of it scaled."""
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    from jaxrock._scene import prepare
+
+    rng = np.random.default_rng(1)
+    dt, n = 0.01, 500
+    record = jr.Record(rng.normal(size=n), dt, name="noise")
+    bound = eqx.filter_jit(lambda s, t0, t1: s.acceleration_bound(t0, t1))
+    values = eqx.filter_jit(lambda s, t: jax.vmap(s.acceleration)(t))
+    for signal in (prepare(record), prepare(record.scaled(2.5))):
+        for length in (0.05, 0.3, 1.7, 4.0):
+            for t0 in rng.uniform(-0.1, n * dt, 8):
+                t1 = t0 + length
+                times = np.concatenate([[t0, t1], np.arange(n) * dt])
+                times = times[(times >= t0) & (times <= t1)]
+                exact = np.max(np.abs(values(signal, jnp.asarray(times))))
+                got = float(bound(signal, t0, t1))
+                assert exact * (1 - 1e-12) <= got <= exact * (1 + 1e-12) + 1e-300

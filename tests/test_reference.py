@@ -298,3 +298,35 @@ def test_a_peak_of_abs_u_inside_a_step_is_located(dt, frequency):
     assert int(r.outcome) == int(bm.outcome[0, 0]) == theirs["outcome"]
     for mine in (float(r.max_base_displacement), bm.max_base_displacement[0, 0]):
         np.testing.assert_allclose(mine, theirs["max_base_displacement"], rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def chatter():
+    """Smoothed noise (dt 0.005 s, 10 s, tapered) and its map on the fixed
+    base: blocks that rock and chatter to rest many times."""
+    rng = np.random.default_rng(3)
+    dt, n = 0.005, 2000
+    samples = np.convolve(rng.normal(size=n), np.ones(8) / 8, mode="same") * 6.0
+    samples *= np.sin(np.pi * np.arange(n) / n) ** 2
+    record = jr.Record(samples, dt, name="noise")
+    lam, size = np.array([3.75, 5.5, 5.75]), np.array([0.1, 0.8, 1.3])
+    bm = jr.behavior_map(
+        lam, size, jr.FixedBase(), record, duration=n * dt + 3.0, progress=False
+    )
+    return samples, dt, bm
+
+
+@pytest.mark.parametrize("cell", [(1, 0), (0, 1), (2, 2)])
+def test_impacts_in_chatter_match_reference(chatter, cell):
+    """The rest rule ends a chatter where the ground cannot lift the block
+    over the chatter's time: a bound of |x_g''| over a window of many
+    samples (here up to about 40) is read from the record's table of peaks,
+    and the impacts counted are the reference's."""
+    samples, dt, bm = chatter
+    i, j = cell
+    lam, size = bm.slenderness[i], bm.size[j]
+    acc, end, breaks = ref.record(samples, dt)
+    theirs = ref.simulate(lam, size, ("fixed",), acc, end + dt + 3.0, dt, breaks=breaks)
+    assert bm.outcome[i, j] == theirs["outcome"]
+    assert bm.impacts[i, j] == theirs["impacts"]
+    assert bm.max_rotation[i, j] == pytest.approx(theirs["max_rotation"], rel=1e-6)

@@ -62,6 +62,7 @@ def _reads(m, t, level):
             m.acceleration_bound(t, t + 0.05),
             m.next_kink(t),
             m.next_kink(t, level),
+            m.acceleration_bound(t, t + 1.0),  # (from the table of peaks)
         )
     )(t)
 
