@@ -75,13 +75,22 @@ def map_devices(cells: int) -> list[jax.Device]:
     the longest: it runs slower there than on two CPU cores (the docs'
     performance page, "On a GPU"). Without a CPU backend (`JAX_PLATFORMS`
     names none), the local devices."""
-    devices = jax.local_devices()
-    if devices[0].platform == "cpu" or cells > HOST_MAP_CELLS:
-        return devices
+    host = host_devices() if cells <= HOST_MAP_CELLS else None
+    return jax.local_devices() if host is None else host
+
+
+def host_devices() -> list[jax.Device] | None:
+    """The host's CPU devices where JAX's local devices are accelerators;
+    None where they are CPUs, or where there is no CPU backend
+    (`JAX_PLATFORMS` names none). One analysis (`jaxrock simulate`) and
+    small maps run there: their compile and their sequence of events cost
+    less on a CPU."""
+    if jax.local_devices()[0].platform == "cpu":
+        return None
     try:
         return jax.local_devices(backend="cpu")
     except RuntimeError:
-        return devices
+        return None
 
 
 def loop_for(platform: str) -> Loop:

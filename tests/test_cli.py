@@ -689,3 +689,39 @@ def test_cli_response_spectrum_errors_are_one_line(
         status = exit.code
     assert status == 2
     assert message in _one_error_line(capsys.readouterr().err)
+
+
+def test_simulate_on_a_gpu_machine_computes_on_its_cpu(tmp_path, monkeypatch):
+    """Where JAX's devices are GPUs, `jaxrock simulate` computes on the
+    host's CPU (JAX's default device there), as small maps do; on a CPU it
+    leaves JAX's default alone."""
+    import jax
+
+    from jaxrock import _layout
+
+    seen = []
+
+    class Result:
+        def summary(self):
+            return "fake response"
+
+    def simulate(*args, **kwargs):
+        seen.append(jax.config.jax_default_device)
+        return Result()
+
+    monkeypatch.setattr(jr, "simulate", simulate)
+    monkeypatch.setattr(plot, "response", lambda r: plt.figure(figsize=(2, 2)))
+    argv = ["simulate", "--slenderness", "4", "--size", "1"]
+    assert main([*argv, "--out", str(tmp_path / "a.png")]) == 0
+
+    class Gpu:
+        platform = "gpu"
+
+    cpus = jax.local_devices(backend="cpu")
+    monkeypatch.setattr(
+        _layout.jax,
+        "local_devices",
+        lambda backend=None: cpus if backend == "cpu" else [Gpu()],
+    )
+    assert main([*argv, "--out", str(tmp_path / "b.png")]) == 0
+    assert seen == [None, cpus[0]]
