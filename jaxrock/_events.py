@@ -90,15 +90,20 @@ def _free_vibration_margins(y, args: Args):
     still and block in translation (else (1, 1)). Each is <= 0 where the
     base's energy is too low to raise max |u|, or to uplift the block."""
     u_bound, f_bound = args.base.free_vibration_bounds(y[2])
-    if args.base.stop is not None:  # a base that may reach its stop: no bound
-        f_bound = jnp.where(u_bound >= args.base.capacity, jnp.inf, f_bound)
+    level = rest_level(args.block, args.slid)
+    lift = f_bound - level
+    if args.base.stop is not None:
+        # A base that may reach its stop has no force bound: the margin is
+        # also > 0 while u's bound reaches the stop (continuous, so that it
+        # has a root to locate, where the bound leaves the stop).
+        lift = jnp.maximum(lift, level * (u_bound / args.base.capacity - 1.0))
     # Armed per segment (not by t >= end_time inside one): a condition that jumped
     # within a segment would be "located" at the jump, with a meaningless
     # derivative.
     armed = (args.phase == Phase.TRANSLATION) & args.ground_still
     return (
         jnp.where(armed, u_bound - args.max_base_displacement, 1.0),
-        jnp.where(armed, f_bound - rest_level(args.block, args.slid), 1.0),
+        jnp.where(armed, lift, 1.0),
     )
 
 

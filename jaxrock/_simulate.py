@@ -254,7 +254,10 @@ def _record(block, base, motion, duration, opts: SolverOptions, grid):
             after_y=rows["after_y"].at[k].set(_state(new.y)),
             before_regime=rows["before_regime"].at[k].set(_regime(c)),
             after_regime=rows["after_regime"].at[k].set(_regime(new)),
-            kind=rows["kind"].at[k].set(new.kind),
+            # (A redo, which sets a limit, is no event.)
+            kind=rows["kind"]
+            .at[k]
+            .set(jnp.where(jnp.isfinite(new.t_limit), EventKind.END, new.kind)),
         )
         return new, k + 1, rows
 

@@ -147,13 +147,17 @@ def simulate(
         mu, R = base[1], base[2]
         return weight * (M * G / R * u + mu * M * G * x[4])
 
-    def stop_force(x):
+    def stop_force(x, entering=False):
+        """The stop's force; `entering`: just past the touch where the base
+        meets it (d -> 0+: the dashpot's force at once)."""
         if stop is None:
             return 0.0
         gap, period, zeta = stop
         u, ud = x[2], x[3]
         d = abs(u) - gap
-        if d <= 0:
+        if entering:
+            d = max(d, 0.0)
+        elif d <= 0:
             return 0.0
         w = 2 * math.pi / period
         push = w * w * d + 2 * zeta * w * math.copysign(1.0, u) * ud
@@ -193,8 +197,10 @@ def simulate(
             out.append(bouc_wen(x))
         return out
 
-    def abs_base_acc(t, x):
-        return acc(t) if fixed else -(isolator_force(x, t) + stop_force(x)) / M
+    def abs_base_acc(t, x, entering=False):
+        if fixed:
+            return acc(t)
+        return -(isolator_force(x, t) + stop_force(x, entering)) / M
 
     def thr_at(t):
         return gravity(t) * b / h
@@ -255,8 +261,8 @@ def simulate(
     elif restitution_factor != 1.0:
         e = restitution_factor * e
 
-    def uplift_now(t, x):
-        a = abs_base_acc(t, x)
+    def uplift_now(t, x, entering=False):
+        a = abs_base_acc(t, x, entering)
         if a <= -thr_at(t):
             return 1
         if a >= thr_at(t):
@@ -400,6 +406,12 @@ def simulate(
             if touch_index is not None and len(sol.t_events[touch_index]):
                 outward = x[2] * x[3] > 0  # it enters the stop, else leaves it
                 last_touch[:] = [t, 1e-30 if outward else -1e-30]
+                # Entering, the dashpot's force jumps: a block at rest may
+                # uplift at once (its condition would start past its root).
+                s0 = uplift_now(t, x, entering=True) if phase == "T" else 0
+                if outward and s0:
+                    phase, s, rocked = "R", s0, True
+                    uplift_time = t if math.isnan(uplift_time) else uplift_time
             if t < t_end:
                 continue  # a kink: the same phase goes on
             break

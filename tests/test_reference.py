@@ -330,3 +330,35 @@ def test_impacts_in_chatter_match_reference(chatter, cell):
     assert bm.outcome[i, j] == theirs["outcome"]
     assert bm.impacts[i, j] == theirs["impacts"]
     assert bm.max_rotation[i, j] == pytest.approx(theirs["max_rotation"], rel=1e-6)
+
+
+# (amplitude, frequency, gamma, phase), (period, damping, mass ratio),
+# (slenderness, size)
+PEAK_BEFORE_AN_EVENT = [
+    (
+        (3.7023047928981625, 1.3236052008633947, 1.3789699455615803, 75.9608211871878),
+        (1.8183714989425033, 0.25294820991476274, 0.4298234029986703),
+        (7.414576822169101, 1.0048249367150697),
+    ),
+    (
+        (4.370537031154774, 0.6345863811083163, 2.197550631005207, 120.30091597368975),
+        (2.5909899400970464, 0.3929752776636411, 0.6349750981600659),
+        (7.915740860323408, 2.041168990769807),
+    ),
+]
+
+
+@pytest.mark.parametrize("pulse, isolator, block", PEAK_BEFORE_AN_EVENT)
+def test_a_new_peak_of_abs_u_before_another_event_is_kept(pulse, isolator, block):
+    """A segment begins at a located peak of |u|; the next, higher peak comes
+    in the step that an apex or the overturn ends. `simulate` redoes the
+    segment up to the peak, as the map finds it, at the default tolerance."""
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    motion, base = jr.MPPulse(*pulse), jr.LinearIsolator(*isolator)
+    r = jr.simulate(jr.Block(*block), base, motion, duration=t_end + 5.0)
+    bm = jr.behavior_map([block[0]], [block[1]], base, motion, duration=t_end + 5.0)
+    theirs = ref.simulate(*block, ("linear", *isolator), acc, t_end + 5.0, max_step)
+    assert int(r.status) == jr.Status.SUCCESS
+    assert int(r.outcome) == int(bm.outcome[0, 0]) == theirs["outcome"]
+    for mine in (float(r.max_base_displacement), bm.max_base_displacement[0, 0]):
+        np.testing.assert_allclose(mine, theirs["max_base_displacement"], rtol=1e-6)

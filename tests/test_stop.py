@@ -185,3 +185,54 @@ def test_history_names_the_stop_and_gradients_go_through():
 def test_bad_stops_are_refused(build, message):
     with pytest.raises(ValueError, match=message):
         build()
+
+
+def test_a_block_at_rest_uplifts_where_the_base_meets_the_stop():
+    """Where the base meets the stop its dashpot's force jumps (2 zeta w |u'|
+    per unit mass): here past the block's uplift level, so the block
+    uplifts at the touch, in `simulate`, the map and the reference."""
+    pulse = (
+        3.1370880259794047,
+        1.2131967573043474,
+        1.6975639464281524,
+        350.15689702790473,
+    )
+    isolator = (3.0873068453719448, 0.0689662967902293, 0.934028793035921)
+    block = (2.618564963313408, 0.4594458571596171)
+    stop = (0.04652407964355269, 0.19069387403015475, 0.10660489629582091)
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    base = jr.LinearIsolator(*isolator, capacity=stop[0], stop=jr.Stop(*stop[1:]))
+    motion, window = jr.MPPulse(*pulse), dict(duration=t_end + 5.0, **TOL)
+    one = jr.simulate(jr.Block(*block), base, motion, history=True, **window)
+    bm = jr.behavior_map([block[0]], [block[1]], base, motion, **window)
+    theirs = ref.simulate(
+        *block, ("linear", *isolator), acc, t_end + 5.0, max_step, stop=stop
+    )
+    touch = one.history.event_times[one.history.event_kinds.index("stop")]
+    assert float(one.uplift_time) == pytest.approx(touch, abs=1e-9)
+    for uplift in (bm.uplift_time[0, 0], theirs["uplift_time"]):
+        assert uplift == pytest.approx(touch, abs=1e-7)
+    assert int(one.impacts) == bm.impacts[0, 0] == theirs["impacts"]
+    assert int(one.outcome) == bm.outcome[0, 0] == theirs["outcome"]
+
+
+def test_the_end_of_an_analysis_against_a_stiff_stop_is_located():
+    """A block at rest on a base whose energy falls until its bound of |u|
+    leaves the stop (period 0.047 s): only then is there a bound of its
+    force, and the analysis ends ("quiet"). Its condition is continuous
+    there, so the map locates its root as `simulate` does, instead of
+    retrying one step until `max_steps`."""
+    pulse = (3.2807587074275073, 2.2113948863226462, 2.695986804230815, 164.2899)
+    isolator = (2.8634364653837627, 0.07219576867914736, 0.43107539002534856)
+    block = (2.0737352696121247, 1.791602958462367)
+    stop = jr.Stop(0.04708662278074155, 0.26668489900240355)
+    base = jr.LinearIsolator(*isolator, capacity=0.08255998607265076, stop=stop)
+    motion = jr.MPPulse(*pulse)
+    one = jr.simulate(jr.Block(*block), base, motion, duration=3.0, history=True)
+    bm = jr.behavior_map([block[0]], [block[1]], base, motion, duration=3.0)
+    assert one.history.event_kinds[-1] == "quiet"
+    assert int(one.status) == bm.status[0, 0] == jr.Status.SUCCESS
+    assert int(one.impacts) == bm.impacts[0, 0]
+    assert float(one.max_base_displacement) == pytest.approx(
+        bm.max_base_displacement[0, 0], rel=1e-6
+    )
