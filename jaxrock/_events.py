@@ -37,6 +37,7 @@ import optimistix as optx
 from jaxtyping import Array, Float
 
 from ._dynamics import (
+    STOP_ROUNDING,
     Args,
     Phase,
     absolute_base_acceleration,
@@ -187,12 +188,19 @@ def condition_slide(t, y, args: Args, **kwargs):
 
 
 def condition_stop(t, y, args: Args, **kwargs):
-    """|u| - capacity against the stop, capacity - |u| off it (`in_stop`,
-    m): <= 0 where the base meets or leaves its stop, the kink of its force
-    (isolators with a `stop`)."""
+    """|u| - capacity + d against the stop, capacity - |u| + d off it
+    (`in_stop`; m, d = `STOP_ROUNDING` capacity): <= 0 where the base meets
+    or leaves its stop, the kink of its force (isolators with a `stop`).
+
+    Each touch is located d past it, so that the next segment's condition
+    starts at 2d > 0, off the boundary: a base that leaves its stop and
+    meets it again within the next step is seen (it would start at 0 to
+    rounding). Past the touch by d the stop's force differs by its
+    dashpot's over a travel of d (1e-9 of the capacity) at most."""
     del t, kwargs
     gap = jnp.abs(y[2][0]) - args.base.capacity
-    return jnp.where(args.in_stop, gap, -gap)
+    near = STOP_ROUNDING * args.base.capacity
+    return jnp.where(args.in_stop, gap, -gap) + near
 
 
 def condition_flight(t, y, args: Args, **kwargs):

@@ -236,3 +236,26 @@ def test_the_end_of_an_analysis_against_a_stiff_stop_is_located():
     assert float(one.max_base_displacement) == pytest.approx(
         bm.max_base_displacement[0, 0], rel=1e-6
     )
+
+
+def test_a_base_that_leaves_its_stop_and_meets_it_again_at_once():
+    """A stiff stop (period 0.03 s) that the base leaves and meets again 3.7
+    ms later, within the map's next step: each touch is located just past
+    it, so the next segment's condition starts off its boundary and sees the
+    return. The map, `simulate` and the reference agree at the default
+    tolerance."""
+    pulse = (6.6739147394146805, 1.2859609214720535, 2.8924946910382636, 221.8288)
+    isolator = (1.5560126412543824, 0.24299677027396321, 0.40093296924805694)
+    block = (2.807456668883611, 2.0813510184727457)
+    stop = (0.10563480767956601, 0.0302873171699614, 0.19782145706583004)
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    base = jr.LinearIsolator(*isolator, capacity=stop[0], stop=jr.Stop(*stop[1:]))
+    motion, duration = jr.MPPulse(*pulse), t_end + 5.0
+    one = jr.simulate(jr.Block(*block), base, motion, duration=duration)
+    bm = jr.behavior_map([block[0]], [block[1]], base, motion, duration=duration)
+    theirs = ref.simulate(
+        *block, ("linear", *isolator), acc, duration, max_step, stop=stop
+    )
+    assert int(one.impacts) == bm.impacts[0, 0] == theirs["impacts"]
+    for mine in (float(one.max_base_displacement), bm.max_base_displacement[0, 0]):
+        assert mine == pytest.approx(theirs["max_base_displacement"], rel=1e-6)
