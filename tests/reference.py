@@ -149,12 +149,14 @@ def simulate(
 
     def stop_force(x, entering=False):
         """The stop's force; `entering`: just past the touch where the base
-        meets it (d -> 0+: the dashpot's force at once)."""
+        meets it (d -> 0+: the dashpot's force at once). A base at a located
+        touch (d = 0 to rounding, 1e-12 of the gap) moving out is entering."""
         if stop is None:
             return 0.0
         gap, period, zeta = stop
         u, ud = x[2], x[3]
         d = abs(u) - gap
+        entering = entering or (u * ud > 0 and d > -1e-12 * gap)
         if entering:
             d = max(d, 0.0)
         elif d <= 0:
