@@ -259,3 +259,37 @@ def test_a_base_that_leaves_its_stop_and_meets_it_again_at_once():
     assert int(one.impacts) == bm.impacts[0, 0] == theirs["impacts"]
     for mine in (float(one.max_base_displacement), bm.max_base_displacement[0, 0]):
         assert mine == pytest.approx(theirs["max_base_displacement"], rel=1e-6)
+
+
+def test_rocking_that_starts_where_the_base_meets_the_stop():
+    """A frictionless pendulum that meets its stop (period 0.05 s) lifts the
+    block there and it rocks; the reference, which applies the dashpot's
+    force from the touch on, counts the same impacts (no impact at rest
+    right after the touch) and the same maxima."""
+    pulse = (
+        1.584516367059516,
+        0.8427334660167034,
+        2.4356332099130604,
+        338.3272762013994,
+    )
+    block = (2.181006979557361, 2.0130126539226314)
+    stop = (0.046827284787625094, 0.04911830832106202, 0.259017067733425)
+    isolator = (0.0, 2.7650916783036825, 0.6745152891938346)
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    base = jr.FrictionPendulum(*isolator, capacity=stop[0], stop=jr.Stop(*stop[1:]))
+    one = jr.simulate(
+        jr.Block(*block), base, jr.MPPulse(*pulse), duration=t_end + 3.0, **TOL
+    )
+    theirs = ref.simulate(
+        *block,
+        ("fps", *isolator, 5e-4, 1.0, 0.9, 0.1, 2.0),
+        acc,
+        t_end + 3.0,
+        max_step,
+        stop=stop,
+    )
+    assert int(one.impacts) == theirs["impacts"]
+    assert float(one.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
+    assert float(one.max_base_displacement) == pytest.approx(
+        theirs["max_base_displacement"], rel=1e-6
+    )
