@@ -160,18 +160,20 @@ def condition_base(t, y, args: Args, **kwargs):
     leaves max|u| as it was. After the ground stops (H = inf), every
     reversal of u outward is an event.
 
-    Just past a located peak g < 0 for about 2H: at a peak located at the
-    segment's start (`Args.peak_time`) g is taken <= 0, so that it fires
-    only once it was > 0 again.
+    In a segment that a located peak began (`Args.peak_time`), H is at most
+    a third of the time since: just past that peak, max|u| - |u| - |u'| H
+    is then about |u''| s^2 / 6 > 0 (s after it) rather than < 0, and g
+    fires only at a new peak.
     """
     del kwargs
     u, u_dot = y[2][0], y[2][1]
     outward = jnp.sign(u) * u_dot
-    bounded = jnp.isfinite(args.step_bound)
-    reach = jnp.abs(u_dot) * jnp.where(bounded, args.step_bound, 0.0)
+    since = jnp.where(jnp.isnan(args.peak_time), jnp.inf, t - args.peak_time)
+    step = jnp.minimum(args.step_bound, since / 3.0)
+    bounded = jnp.isfinite(step)
+    reach = jnp.abs(u_dot) * jnp.where(bounded, step, 0.0)
     below = args.max_base_displacement - jnp.abs(u) - reach
-    g = jnp.where(bounded, jnp.maximum(outward, below), outward)
-    return jnp.where(t == args.peak_time, jnp.minimum(g, 0.0), g)
+    return jnp.where(bounded, jnp.maximum(outward, below), outward)
 
 
 def condition_slide(t, y, args: Args, **kwargs):

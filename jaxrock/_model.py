@@ -645,20 +645,6 @@ def _merge_redo(c: Carry, new: Carry, active, redo, limit) -> Carry:
     )
 
 
-def _base_peak_at_event(c: Carry, end: _SegmentEnd, args: Args, start):
-    """`condition_base` at an event that another condition fired, for
-    `redo_limit`. A segment that began <= 0 (`start`) began just past a
-    located peak, where the condition stays < 0 for about 2H with no new
-    peak; with H at most a third of the segment's time, max|u| - |u| - |u'| H
-    stays above 0 there (about |u''| s^2 / 6, s after the peak), and a value
-    < 0 says that a new peak came before the event."""
-    short = jnp.minimum(args.step_bound, (end.t - c.t) / 3.0)
-    value = condition_base(
-        end.t, end.y, eqx.tree_at(lambda a: a.step_bound, args, short)
-    )
-    return jnp.where(start > 0, condition_base(end.t, end.y, args), value)
-
-
 def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -> Carry:
     """Apply what ended the segment: uplift, apex, impact map, overturn, ...
 
@@ -675,14 +661,13 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     if limit is None:
         _, args, named, *_ = segment_setup(c, block, base, motion, duration, opts)
         conditions = jax.tree_util.tree_leaves(named)
-        starts = [cond(c.t, c.y, args) for cond in conditions]
-        ends = [
-            _base_peak_at_event(c, end, args, v0)
-            if cond is condition_base
-            else cond(end.t, end.y, args)
-            for cond, v0 in zip(conditions, starts)
-        ]
-        limit = redo_limit(c.t, end.t, [~m for m in sol.event_mask], starts, ends)
+        limit = redo_limit(
+            c.t,
+            end.t,
+            [~m for m in sol.event_mask],
+            [cond(c.t, c.y, args) for cond in conditions],
+            [cond(end.t, end.y, args) for cond in conditions],
+        )
     redo = active & end.event & jnp.isfinite(limit) & jnp.isinf(c.t_limit)
     redo = redo & (end.t - 2.0 * REDO_MARGIN > c.t)
     # The solver's mask holds the conditions present, in order: named again.
