@@ -128,7 +128,9 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         return ~s["done"] & (s["segments"] < limit)
 
     def body(s):
-        """The impact at s["t"] (or the window's end first), then the apex."""
+        """The impact at s["t"] (or the window's end first), then the apex;
+        or, where they all fall inside the window, every impact down to rest
+        (`_impacts_to_rest`)."""
         end = s["t"] > duration
         gap2 = x0 * x0 - s["k"] ** 2
         # theta'-^2 = 4 p^2 (x0^2 - k^2) at the impact.
@@ -141,12 +143,18 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         segments = s["segments"] + 1  # the end, or the impact
         bounce = ~end & ~rest & (segments < limit)
         late = s["t"] + half > duration  # the window ends before the apex
+        # The chain: m more impacts, the last of them at most 2 half (1 - e^m)
+        # / (1 - e) from this one (with a margin for rounding).
+        m, counted = _impacts_to_rest(block, e, theta_dot_squared, opts)
+        span = 2.0 * half * (1.0 - e**m) / (1.0 - jnp.minimum(e, 1.0 - 1e-16))
+        chain = bounce & counted & (s["t"] + span * (1.0 + 1e-9) <= duration)
+        chain = chain & (s["segments"] + 2 * m < limit)
         new = dict(
             t=s["t"] + 2.0 * half,
             k=k,
-            impacts=s["impacts"] + ~end,
-            segments=segments + bounce,  # the apex, or the end before it
-            done=end | rest | (bounce & late),
+            impacts=s["impacts"] + ~end + jnp.where(chain, m, 0),
+            segments=segments + bounce + jnp.where(chain, 2 * m - 1, 0),
+            done=end | rest | (bounce & late) | chain,
         )
         return jax.tree_util.tree_map(lambda n, o: jnp.where(going(s), n, o), new, s)
 
@@ -166,3 +174,44 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
     return eqx.tree_at(
         fields, c, tuple(jnp.where(ready, n, o) for n, o in zip(new, fields(c)))
     )
+
+
+def _impacts_to_rest(block, e, theta_dot_squared, opts):
+    """(m, counted): the impacts after one at theta'^2 = `theta_dot_squared`
+    until the rest rule ends rocking in free rocking, and whether m is
+    counted (e < 1 and m checked with `rests_at_impact` itself at m - 1 and
+    m; m is 0 where it is not).
+
+    Each impact multiplies theta'^2 by e^2, and the rule holds at the first
+    impact whose rise e^2 theta'^2 / (2 p^2 sin alpha) is below
+    `rest_tolerance` alpha: m = floor(log(tol alpha / rise_0) / log(e^2)) + 1.
+
+    The half-cycles between them shrink at least as fast, so a chain of m
+    impacts lasts at most 2 half_1 (1 - e^m) / (1 - e), half_1 the
+    half-cycle after the first: the time from an apex theta_a to the impact
+    over the impact's speed v is (1 / (2 p^2)) int_0^1 ds / (F sqrt(R(s))),
+    with F = int_0^1 sin(alpha - theta_a s) ds and R(s) = int_s^1
+    sin(alpha - theta_a s') ds' / F. It grows with theta_a: F falls, and so
+    does R, as the weight of sin(alpha - theta_a s) moves toward small s
+    (its ratio at two apexes is monotone in s). The next half-cycle, at the
+    speed e v, is thus at most e times this one.
+    """
+
+    def rests(j):
+        return rests_at_impact(
+            block, e, theta_dot_squared * e ** (2.0 * j), opts.rest_tolerance
+        )
+
+    e_below_one = jnp.clip(e, 1e-300, 1.0 - 1e-16)  # the logarithm's
+    rise = (
+        e_below_one**2 * theta_dot_squared / (2.0 * block.p**2 * block.b / block.size)
+    )
+    m = (
+        jnp.floor(
+            jnp.log(opts.rest_tolerance * block.alpha / rise) / jnp.log(e_below_one**2)
+        )
+        + 1.0
+    )
+    m = jnp.clip(jnp.nan_to_num(m), 1.0, 1e6)
+    counted = (e > 0) & (e < 1) & ~rests(0.0) & rests(m) & ~rests(m - 1.0)
+    return jnp.where(counted, m, 0.0).astype(jnp.int32), counted

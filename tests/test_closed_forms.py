@@ -2,6 +2,7 @@
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -354,3 +355,86 @@ def test_held_base_states_have_zero_rates(base):
         assert rates.shape == (base.n_states,)
         assert np.all(rates[n:] == 0.0)
         assert np.all(rates[:n] != 0.0)  # (u' and u'' of a random state)
+
+
+def test_each_free_rocking_half_cycle_is_at_most_e_times_the_one_before():
+    """The bound `_free._impacts_to_rest` rests on: the time from an apex to
+    the impact, over the impact's speed, grows with the apex, so at the speed
+    e v it is at most e times that at v; checked from tiny rocking to the
+    separatrix."""
+    from jaxrock._free import time_from_apex
+
+    block = jr.Block(4.0, 1.0)
+    p, alpha = float(block.p), float(block.alpha)
+    x0 = math.sin(alpha / 2)
+    apex = alpha * np.concatenate(
+        [np.geomspace(1e-8, 0.5, 200), 1 - np.geomspace(0.5, 1e-9, 200)]
+    )
+    k = np.sin((alpha - apex) / 2)
+    gap2 = x0**2 - k**2  # (theta' / 2p)^2 at the impact
+    half = np.asarray(time_from_apex(p, x0, k, gap2 / (x0 + k)))
+    per_speed = half / np.sqrt(gap2)
+    assert np.all(np.diff(per_speed) >= -1e-12 * per_speed[1:])
+    assert per_speed[-1] > 3 * per_speed[0]  # not a constant: the bound is used
+
+
+@pytest.mark.parametrize("max_segments", [2000, 40])
+def test_free_rocking_counts_a_chain_of_impacts_as_one_at_a_time(
+    monkeypatch, max_segments
+):
+    """`free_rocking` counts the impacts down to rest at once where the whole
+    chain falls inside the window (`_impacts_to_rest`); with the chain turned
+    off it counts them one at a time. Random lanes, rising and falling, some
+    close to the separatrix, windows that end anywhere in the chain (and a
+    segment limit hit in it), give the same counts both ways."""
+    from jaxrock import _free
+    from jaxrock._dynamics import Phase
+    from jaxrock._model import initial_carry
+    from jaxrock._scene import prepare
+
+    rng = np.random.default_rng(3)
+    n = 400
+    block = jr.Block(rng.uniform(2.0, 8.0, n), rng.uniform(0.3, 3.0, n))
+    base = jr.FixedBase()
+    opts = jr.SolverOptions(max_segments=max_segments)
+    alpha, p = np.asarray(block.alpha), np.asarray(block.p)
+    theta = rng.uniform(0.0, 0.9, n) * alpha
+    # Below the separatrix: theta'^2 < 2 p^2 (1 - cos(alpha - theta)).
+    room = 2 * p**2 * (1 - np.cos(alpha - theta))
+    theta_dot = np.sqrt(rng.uniform(0.0, 1.0, n) * room) * rng.choice([-1, 1], n)
+    sign = rng.choice([-1.0, 1.0], n)
+    end = float(PULSE.end_time)
+    duration = end + rng.uniform(0.0, 40.0, n)
+    c = jax.vmap(lambda b: initial_carry(b, base, prepare(PULSE)))(block)
+    c = eqx.tree_at(
+        lambda c: (c.t, c.y, c.phase, c.sign),
+        c,
+        (
+            jnp.full(n, end),
+            (jnp.asarray(sign * theta), jnp.asarray(sign * theta_dot), None),
+            jnp.where(theta_dot > 0, Phase.RISING, Phase.FALLING),
+            jnp.asarray(sign),
+        ),
+    )
+    ready = _free.free_rocking_ready(c, block, end)
+    assert bool(jnp.all(ready))
+
+    def finish():  # traced anew each time, so that it reads the patch
+        run = eqx.filter_jit(lambda *a: _free.free_rocking(*a))
+        return run(c, block, base, duration, opts, ready)
+
+    chained = finish()
+    monkeypatch.setattr(
+        _free, "_impacts_to_rest", lambda *a: (jnp.int32(0), jnp.asarray(False))
+    )
+    one_at_a_time = finish()
+    for field in ("impacts", "segments", "done", "max_theta"):
+        np.testing.assert_array_equal(
+            getattr(chained, field), getattr(one_at_a_time, field), err_msg=field
+        )
+    impacts = np.asarray(chained.impacts)
+    assert np.sum(impacts == 0) < n // 4
+    if max_segments == 2000:
+        assert impacts.max() > 100
+    else:
+        assert np.sum(np.asarray(chained.segments) >= max_segments) > 10
