@@ -254,6 +254,9 @@ class RecordSignal(AbstractSignal):
     # max |x_g''| of `record.unscaled` over sample ranges [k, k + 2^l)
     # (`with_peaks`), or None.
     peaks: Float[Array, "*records levels n"] | None = None
+    # With a vertical part: max of -a_v (how far g_eff falls below g) over
+    # the same ranges (`with_peaks`), or None.
+    vertical_lows: Float[Array, "*records levels n"] | None = None
     # A linear isolator's response in translation to the unscaled records
     # (`with_translation`), or None.
     translation: TranslationTables | None = None
@@ -329,6 +332,7 @@ class RecordSignal(AbstractSignal):
                 s.record.factor,
                 s.record.vertical,
                 s.peaks,
+                s.vertical_lows,
                 s.translation,
                 s.index,
             ),
@@ -340,6 +344,7 @@ class RecordSignal(AbstractSignal):
                 flat(r.factor),
                 flat(r.vertical, 1),
                 flat(self.peaks, 2),
+                flat(self.vertical_lows, 2),
                 translation,
                 jnp.asarray(index),
             ),
@@ -377,11 +382,17 @@ class RecordSignal(AbstractSignal):
 
     def _vertical_view(self) -> "RecordSignal":
         """The vertical samples read as a record's (the same dt, length,
-        factor and row), without tables."""
+        factor and row), their table of lows (`vertical_lows`) as its peaks."""
         return eqx.tree_at(
-            lambda s: (s.record.unscaled, s.record.vertical, s.peaks, s.translation),
+            lambda s: (
+                s.record.unscaled,
+                s.record.vertical,
+                s.peaks,
+                s.vertical_lows,
+                s.translation,
+            ),
             self,
-            (self.record.vertical, None, None, None),
+            (self.record.vertical, None, self.vertical_lows, None, None),
             is_leaf=lambda x: x is None,
         )
 
@@ -399,7 +410,7 @@ class RecordSignal(AbstractSignal):
     def gravity_bound(self, t0, t1):
         if self.record.vertical is None:
             return GRAVITY
-        return GRAVITY - self._vertical_view()._extreme(t0, t1, jnp.negative)
+        return GRAVITY - self._vertical_view()._bound(t0, t1, jnp.negative)
 
     @property
     def least_gravity(self):
@@ -440,15 +451,21 @@ class RecordSignal(AbstractSignal):
         largest of |x_g''(t0)|, |x_g''(t1)| and the samples between, read from
         at most `_BOUND_SAMPLES` samples after t0; over a longer interval,
         from the table of peaks (inf without one)."""
-        near = self._extreme(t0, t1, jnp.abs)
+        return self._bound(t0, t1, jnp.abs)
+
+    def _bound(self, t0, t1, of):
+        """max of of(x_g'') over [t0, t1] (`of`: abs, or negative with a
+        table of the samples' negatives): `_extreme`, else `_peak_bound`."""
+        near = self._extreme(t0, t1, of)
         if self.peaks is None:
             return near
-        return jnp.where(jnp.isinf(near), self._peak_bound(t0, t1), near)
+        return jnp.where(jnp.isinf(near), self._peak_bound(t0, t1, of), near)
 
-    def _peak_bound(self, t0, t1):
-        """max |x_g''| over [t0, t1] from the table of peaks: the samples
-        strictly inside, [i, j], are the union of the two ranges of 2^l
-        samples from i and to j (2^l <= j - i + 1 < 2^(l+1)), and the ends."""
+    def _peak_bound(self, t0, t1, of=jnp.abs):
+        """max of(x_g'') over [t0, t1] from the table of peaks (of of(samples)):
+        the samples strictly inside, [i, j], are the union of the two ranges
+        of 2^l samples from i and to j (2^l <= j - i + 1 < 2^(l+1)), and the
+        ends. (A factor > 0 scales of(samples) alike.)"""
         n, dt = self.sample_count, self._dt
         i = jnp.clip(jnp.floor(t0 / dt) + 1.0, 0, n - 1).astype(int)
         j = jnp.clip(jnp.ceil(t1 / dt) - 1.0, 0, n - 1).astype(int)
@@ -461,9 +478,7 @@ class RecordSignal(AbstractSignal):
         scale = 1.0 if factor is None else self._of_batch(factor)
         first = self._read(self.peaks, width_log, i)
         last = self._read(self.peaks, width_log, jnp.maximum(j - 2**width_log + 1, 0))
-        ends = jnp.maximum(
-            jnp.abs(self.acceleration(t0)), jnp.abs(self.acceleration(t1))
-        )
+        ends = jnp.maximum(of(self.acceleration(t0)), of(self.acceleration(t1)))
         return jnp.maximum(ends, scale * jnp.maximum(first, last))
 
     def _extreme(self, t0, t1, of):
@@ -489,13 +504,22 @@ class RecordSignal(AbstractSignal):
         suite, one table a record, unless the tables would exceed
         `_PEAKS_BYTES` (a suite's resting blocks then step through its
         samples). Of a scaled record, the table of its unscaled samples.
+        With a vertical part, its table of lows too (`vertical_lows`: max of
+        -a_v over the same ranges), for the rest rule's bound of g_eff.
         Traceable."""
-        level = jnp.abs(self.record.unscaled)
-        n = level.shape[-1]
-        if level.size * _levels(n) * level.dtype.itemsize > _PEAKS_BYTES:
+        levels = [jnp.abs(self.record.unscaled)]
+        if self.record.vertical is not None:
+            levels.append(-self.record.vertical)
+        n = levels[0].shape[-1]
+        size = sum(x.size for x in levels) * _levels(n) * levels[0].dtype.itemsize
+        if size > _PEAKS_BYTES:
             return self
+        tables = [range_maxima(x) for x in levels] + [None]
         return eqx.tree_at(
-            lambda s: s.peaks, self, range_maxima(level), is_leaf=lambda x: x is None
+            lambda s: (s.peaks, s.vertical_lows),
+            self,
+            tuple(tables[:2]),
+            is_leaf=lambda x: x is None,
         )
 
     def with_translation(self, base) -> "RecordSignal":

@@ -288,7 +288,7 @@ def simulate(
                 return level, None
             return level, 2 * e * abs(thd) / (decel * (1 - e))
 
-        level, window = chatter(thr)
+        level, window = chatter(thr_at(t))  # S at g_eff of the impact
         if vertical is not None and window is not None:
             horizon = 2 * window
             grid = np.linspace(t, t + horizon, 65)

@@ -341,3 +341,25 @@ def test_a_records_acceleration_bound_is_its_largest_value():
                 exact = np.max(np.abs(values(signal, jnp.asarray(times))))
                 got = float(bound(signal, t0, t1))
                 assert exact * (1 - 1e-12) <= got <= exact * (1 + 1e-12)
+
+
+def test_a_vertical_records_gravity_bound_is_its_least_g_eff():
+    """`gravity_bound(t0, t1)` of a record with a vertical part is the least
+    g_eff = g + a_v over [t0, t1], to rounding, over short intervals and
+    long ones (from the table of lows of a_v), of a record and of it scaled."""
+    rng = np.random.default_rng(2)
+    dt, n = 0.01, 500
+    record = jr.Record(rng.normal(size=n), dt).with_vertical(
+        jr.Record(rng.normal(size=n) + 0.5, dt)
+    )
+    bound = eqx.filter_jit(lambda s, t0, t1: s.gravity_bound(t0, t1))
+    values = eqx.filter_jit(lambda s, t: jax.vmap(s.gravity)(t))
+    for signal in (prepare(record), prepare(record.scaled(2.5))):
+        for length in (0.05, 0.3, 1.7, 4.0):
+            for t0 in rng.uniform(-0.1, n * dt, 8):
+                t1 = t0 + length
+                times = np.concatenate([[t0, t1], np.arange(n) * dt])
+                times = times[(times >= t0) & (times <= t1)]
+                exact = float(np.min(values(signal, jnp.asarray(times))))
+                got = float(bound(signal, t0, t1))
+                assert got == pytest.approx(exact, rel=1e-12)
