@@ -3,6 +3,7 @@
 
 import abc
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -116,18 +117,57 @@ class AbstractGroundMotion(AbstractChecked):
 
 
 class AbstractPulse(AbstractGroundMotion):
-    """A closed-form pulse: x_g'' smooth within [`start_time`, `end_time`],
-    with a bound of its curvature (`acceleration_curvature`) and a largest
-    step (`max_step`).
+    """A closed-form pulse: x_g'' smooth within [`start_time`, `end_time`]
+    and zero outside, with bounds of its rate (`jerk_bound`) and curvature
+    (`acceleration_curvature`), and a largest step (`max_step`).
 
-    The bound lets a block at rest on a fixed base step to just before
-    |x_g''| could reach its uplift level (`_signal.ClosedFormSignal`).
+    The bounds let a block at rest on a fixed base step to just before
+    |x_g''| could reach its uplift level (`_signal.ClosedFormSignal`), and
+    bound x_g'' over an interval for the rest rule (`acceleration_bound`).
     """
+
+    @property
+    @abc.abstractmethod
+    def jerk_bound(self) -> Float[Array, "..."]:
+        """A bound of |(x_g'')'| over the pulse (m/s^3)."""
 
     @property
     @abc.abstractmethod
     def acceleration_curvature(self) -> Float[Array, "..."]:
         """A bound of |(x_g'')''| over the pulse (m/s^4)."""
+
+    def _range(self, t0, t1):
+        """(lower, upper) bounds of x_g'' over [t0, t1] (m/s^2), the tightest
+        of three: the peak; a = x_g''(t0) -+ `jerk_bound` (t1 - t0); and,
+        where x_g'' is smooth over the interval (no end of the pulse inside,
+        where its rate jumps), Taylor's with the curvature C:
+        a + min(0, a' w - C w^2 / 2) <= x_g'' <= a + max(0, a' w + C w^2 / 2),
+        w = t1 - t0, a' = (x_g'')'(t0) (the bounds of a' s -+ C s^2 / 2 on
+        [0, w] are at its ends). Zero on both sides outside the pulse."""
+        t0 = jnp.asarray(t0, dtype=float)
+        a, rate = jax.jvp(self.acceleration, (t0,), (jnp.ones_like(t0),))
+        w = t1 - t0
+        jerk, peak = self.jerk_bound * w, self.peak_acceleration_bound
+        bend = 0.5 * self.acceleration_curvature * w * w
+        start, end = self.start_time, self.end_time
+        outside = (t0 >= end) | (t1 <= start)
+        smooth = outside | ((t0 >= start) & (t1 <= end))
+        upper = jnp.minimum(a + jerk, peak)
+        upper = jnp.where(
+            smooth, jnp.minimum(upper, a + jnp.maximum(rate * w + bend, 0.0)), upper
+        )
+        lower = jnp.maximum(a - jerk, -peak)
+        lower = jnp.where(
+            smooth, jnp.maximum(lower, a + jnp.minimum(rate * w - bend, 0.0)), lower
+        )
+        return jnp.where(outside, 0.0, lower), jnp.where(outside, 0.0, upper)
+
+    def acceleration_bound(self, t0, t1):
+        lower, upper = self._range(t0, t1)
+        return jnp.maximum(upper, -lower)
+
+    def acceleration_lower_bound(self, t0, t1):
+        return self._range(t0, t1)[0]
 
     @property
     @abc.abstractmethod
@@ -244,17 +284,11 @@ class MPPulse(AbstractPulse):
         )
 
     @property
-    def _jerk(self):
+    def jerk_bound(self):
         # The jerk is at most |A| pi f_p / gamma * 2 pi f_p (1/gamma + 2 + 2 gamma).
         w = 2.0 * jnp.pi * self.frequency
         jerk = jnp.abs(self.amplitude) * 0.5 * w * w / self.gamma
         return jerk * (1.0 / self.gamma + 2.0 + 2.0 * self.gamma)
-
-    def acceleration_bound(self, t0, t1):
-        return jnp.abs(self.acceleration(t0)) + self._jerk * (t1 - t0)
-
-    def acceleration_lower_bound(self, t0, t1):
-        return self.acceleration(t0) - self._jerk * (t1 - t0)
 
     @property
     def acceleration_curvature(self):
@@ -342,13 +376,9 @@ class SinePulse(AbstractPulse):
     def peak_acceleration_bound(self):
         return jnp.abs(self.amplitude)
 
-    def acceleration_bound(self, t0, t1):
-        jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
-        return jnp.abs(self.acceleration(t0)) + jerk * (t1 - t0)
-
-    def acceleration_lower_bound(self, t0, t1):
-        jerk = jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
-        return self.acceleration(t0) - jerk * (t1 - t0)
+    @property
+    def jerk_bound(self):
+        return jnp.abs(self.amplitude) * 2.0 * jnp.pi * self.frequency
 
     @property
     def acceleration_curvature(self):

@@ -438,3 +438,30 @@ def test_free_rocking_counts_a_chain_of_impacts_as_one_at_a_time(
         assert impacts.max() > 100
     else:
         assert np.sum(np.asarray(chained.segments) >= max_segments) > 10
+
+
+@pytest.mark.parametrize(
+    "pulse",
+    [PULSE, jr.MPPulse(0.8, 1.3, 2.5, 40.0, t0=1.5), jr.SinePulse(3.0, 2.0)],
+    ids=["san-fernando", "mp-late", "sine"],
+)
+def test_a_pulses_bounds_of_its_acceleration_hold_and_are_second_order(pulse):
+    """`acceleration_bound` and `acceleration_lower_bound` of a pulse bound
+    x_g'' (sampled densely) over intervals that start before, inside and
+    after it and cross its ends; over short intervals inside it they are
+    second-order tight: within the curvature's w^2 / 2 of the true range."""
+    rng = np.random.default_rng(5)
+    start, end = float(pulse.start_time), float(pulse.end_time)
+    curvature = float(pulse.acceleration_curvature)
+    for w in (1e-3, 1e-2, 0.1, 0.5):
+        for t0 in rng.uniform(start - 0.3, end + 0.1, 40):
+            t = np.linspace(t0, t0 + w, 401)
+            a = np.asarray(jax.vmap(pulse.acceleration)(jnp.asarray(t)))
+            upper = float(pulse.acceleration_bound(t0, t0 + w))
+            lower = float(pulse.acceleration_lower_bound(t0, t0 + w))
+            assert upper >= np.abs(a).max() - 1e-12
+            assert lower <= a.min() + 1e-12
+            if start < t0 and t0 + w < end and w <= 1e-2:
+                slack = curvature * w * w / 2 + 1e-12
+                assert upper <= np.abs(a).max() + 2 * slack
+                assert lower >= a.min() - 2 * slack

@@ -266,3 +266,35 @@ def test_fragility_scales_both_parts(pacoima):
         one = jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), pacoima.scaled(s))
         assert bool(frag.overturned[k]) == (int(one.outcome) == jr.Outcome.OVERTURNED)
         assert bool(frag.rocked[k]) == (int(one.outcome) != jr.Outcome.NO_ROCKING)
+
+
+# (horizontal pulse, scale, vertical pulse, scale, slenderness, size): blocks
+# that chatter to rest while the pulses last.
+CHATTER = [
+    ("Aigion AEG/Lon", 0.853, "Aigion AEG/Lon", 0.437, 3.559, 2.065),
+    ("Northridge JFA/SN", 1.406, "San Fernando PCD/SN", 0.479, 4.027, 0.337),
+]
+
+
+@pytest.mark.parametrize("case", CHATTER, ids=["aigion", "northridge"])
+@pytest.mark.parametrize("shaken", [True, False], ids=["vertical", "horizontal"])
+def test_impacts_in_chatter_under_pulses_match_reference(case, shaken):
+    """The rest rule bounds a pulse's x_g'' (and, under vertical shaking, how
+    far g_eff falls) over the chatter's time to second order (Taylor's with
+    the curvature, where no end of the pulse lies inside): the impacts
+    counted are the reference's, which takes the extremes on a fine grid."""
+    name, scale, vname, vscale, lam, r = case
+    motion, (acc, t_end, max_step) = _pulse(name, scale)
+    vertical, vacc = _vertical_pulse(vname, vscale)
+    end = max(t_end, float(vertical.end_time)) + 5.0
+    step = min(max_step, float(vertical.max_step))
+    if not shaken:
+        vertical, vacc, step = None, None, max_step
+    shaken_motion = motion if vertical is None else motion.with_vertical(vertical)
+    ours = jr.simulate(
+        jr.Block(lam, r), jr.FixedBase(), shaken_motion, duration=end, **TOL
+    )
+    theirs = ref.simulate(lam, r, ("fixed",), acc, end, step, vertical=vacc)
+    assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.ROCKING
+    assert int(ours.impacts) == theirs["impacts"]
+    assert float(ours.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
