@@ -116,6 +116,12 @@ class AbstractGroundMotion(AbstractChecked):
         return with_vertical(self, vertical)
 
 
+# Pieces of an interval over which a pulse bounds x_g'' (`AbstractPulse`):
+# Taylor's bound from each piece's start is within C (w / n)^2 / 2 of the
+# true range, C the curvature bound.
+PULSE_BOUND_PIECES = 8
+
+
 class AbstractPulse(AbstractGroundMotion):
     """A closed-form pulse: x_g'' smooth within [`start_time`, `end_time`]
     and zero outside, with bounds of its rate (`jerk_bound`) and curvature
@@ -137,6 +143,16 @@ class AbstractPulse(AbstractGroundMotion):
         """A bound of |(x_g'')''| over the pulse (m/s^4)."""
 
     def _range(self, t0, t1):
+        """(lower, upper) bounds of x_g'' over [t0, t1] (m/s^2): over each of
+        `PULSE_BOUND_PIECES` equal pieces, the tightest of three (`_piece`),
+        and their extremes."""
+        t0 = jnp.asarray(t0, dtype=float)
+        w = (t1 - t0) / PULSE_BOUND_PIECES
+        starts = t0 + w * jnp.arange(PULSE_BOUND_PIECES)
+        lower, upper = jax.vmap(lambda s: self._piece(s, s + w))(starts)
+        return jnp.min(lower, axis=0), jnp.max(upper, axis=0)
+
+    def _piece(self, t0, t1):
         """(lower, upper) bounds of x_g'' over [t0, t1] (m/s^2), the tightest
         of three: the peak; a = x_g''(t0) -+ `jerk_bound` (t1 - t0); and,
         where x_g'' is smooth over the interval (no end of the pulse inside,
@@ -144,7 +160,6 @@ class AbstractPulse(AbstractGroundMotion):
         a + min(0, a' w - C w^2 / 2) <= x_g'' <= a + max(0, a' w + C w^2 / 2),
         w = t1 - t0, a' = (x_g'')'(t0) (the bounds of a' s -+ C s^2 / 2 on
         [0, w] are at its ends). Zero on both sides outside the pulse."""
-        t0 = jnp.asarray(t0, dtype=float)
         a, rate = jax.jvp(self.acceleration, (t0,), (jnp.ones_like(t0),))
         w = t1 - t0
         jerk, peak = self.jerk_bound * w, self.peak_acceleration_bound

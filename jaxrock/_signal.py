@@ -162,12 +162,16 @@ def _below_level_until(signal, t, quiet_below, curvature, start):
     below `quiet_below` for h < 2 m / (|a'| + sqrt(a'^2 + 2 curvature m)),
     m = quiet_below - |a|. Before `start`, where x_g'' begins with a kink,
     the step ends there. At least `max_step` / 1000: an excursion beyond the
-    level by less than curvature (max_step / 1000)^2 / 2 may still hide."""
+    level by less than curvature (max_step / 1000)^2 / 2 may still hide.
+    Where |x_g''| is at or above `quiet_below` already (a level lowered by
+    the least g_eff of a vertical motion, below the block's own level
+    now), the step ends `max_step` on, as any step while the ground moves:
+    the uplift condition, at g_eff, is located on it."""
     a, rate = jax.jvp(signal.acceleration, (t,), (jnp.ones_like(t),))
     margin = jnp.maximum(quiet_below - jnp.abs(a), 0.0)
     root = jnp.sqrt(rate * rate + 2.0 * curvature * margin)
     h = 2.0 * margin / jnp.maximum(jnp.abs(rate) + root, jnp.finfo(t.dtype).tiny)
-    h = jnp.maximum(h, 1e-3 * signal.max_step)
+    h = jnp.where(margin > 0, jnp.maximum(h, 1e-3 * signal.max_step), signal.max_step)
     end = jnp.where(t < start, jnp.minimum(t + h, start), t + h)
     return jnp.where((quiet_below > 0) & (t < signal.end_time), end, jnp.inf)
 

@@ -371,6 +371,20 @@ def test_impacts_in_chatter_under_vertical_shaking_match_reference(
     assert bm.max_rotation[i, j] == pytest.approx(theirs["max_rotation"], rel=1e-6)
 
 
+@pytest.mark.parametrize("lam, size", [(6.3, 0.1), (6.3, 1.9)])
+def test_impacts_of_chatter_under_the_paper_pulse_match_reference(lam, size):
+    """Two cells of the paper's fixed-base map under the San Fernando PCD/SN
+    pulse that chatter to rest while the pulse lasts (one then overturns):
+    the rest rule's bound of x_g'' over the chatter's time, piece by piece
+    to second order, counts the reference's impacts."""
+    motion, (acc, t_end, max_step) = _pulse("San Fernando PCD/SN", 1.0)
+    ours = jr.simulate(jr.Block(lam, size), jr.FixedBase(), motion, duration=t_end + 10)
+    theirs = ref.simulate(lam, size, ("fixed",), acc, t_end + 10, max_step)
+    assert int(ours.outcome) == theirs["outcome"]
+    assert int(ours.impacts) == theirs["impacts"]
+    assert float(ours.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
+
+
 # (amplitude, frequency, gamma, phase), (period, damping, mass ratio),
 # (slenderness, size)
 PEAK_BEFORE_AN_EVENT = [

@@ -298,3 +298,68 @@ def test_impacts_in_chatter_under_pulses_match_reference(case, shaken):
     assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.ROCKING
     assert int(ours.impacts) == theirs["impacts"]
     assert float(ours.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
+
+
+def test_a_block_at_rest_between_its_lowered_level_and_its_own_steps_on():
+    """A block at rest on a fixed base skips ahead under a pulse while
+    |x_g''| is below its level at the least g_eff of the vertical pulse;
+    where |x_g''| lies between that level and its own at g_eff (here for
+    about 0.3 s), it steps as under any moving ground and uplifts where the
+    reference does, within the default step limit."""
+    horizontal = (1.0745, 0.7407, 2.523, 23.4)
+    vertical = (0.4036, 1.8234, 2.0555, 24.84)
+    lam, r = 2.775, 2.752
+    motion = jr.MPPulse(*horizontal).with_vertical(jr.MPPulse(*vertical))
+    acc, t_end, step = ref.mp_pulse(*horizontal)
+    vacc, v_end, v_step = ref.mp_pulse(*vertical)
+    end = max(t_end, v_end) + 5.0
+    block = jr.Block(lam, r)
+    least = (
+        (9.81 - float(jr.MPPulse(*vertical).peak_acceleration_bound))
+        * block.b
+        / block.h
+    )
+    assert abs(float(motion.acceleration(0.75))) > least  # between the two levels
+    ours = jr.simulate(block, jr.FixedBase(), motion, duration=end)
+    bm = jr.behavior_map([lam], [r], jr.FixedBase(), motion, duration=end)
+    theirs = ref.simulate(
+        lam, r, ("fixed",), acc, end, min(step, v_step), vertical=vacc
+    )
+    assert int(ours.status) == int(bm.status[0, 0]) == jr.Status.SUCCESS
+    assert int(ours.outcome) == int(bm.outcome[0, 0]) == theirs["outcome"]
+    assert int(ours.impacts) == int(bm.impacts[0, 0]) == theirs["impacts"]
+    for mine in (float(ours.max_rotation), bm.max_rotation[0, 0]):
+        assert mine == pytest.approx(theirs["max_rotation"], rel=1e-6)
+
+
+def test_impacts_in_chatter_on_an_isolator_under_a_vertical_pulse():
+    """On a bilinear isolator under two pulses, a chatter whose time spans
+    about 0.17 s, past the vertical pulse's end: the rest rule's bound of
+    how far g_eff falls is taken piece by piece (a Taylor bound over the
+    whole window is 20 times too low there), and the impacts counted are
+    the reference's."""
+    horizontal = (1.1155, 1.0851, 2.8425, 117.05)
+    vertical = (0.31785, 1.9934, 1.9782, 12.757)
+    q, period, yield_displacement, mass_ratio = 0.09354, 3.956, 0.019213, 0.98598
+    lam, r = 6.032, 2.535
+    acc, t_end, step = ref.mp_pulse(*horizontal)
+    vacc, v_end, v_step = ref.mp_pulse(*vertical)
+    end = max(t_end, v_end) + 5.0
+    motion = jr.MPPulse(*horizontal).with_vertical(jr.MPPulse(*vertical))
+    base = jr.BilinearIsolator(q, period, yield_displacement, mass_ratio)
+    ours = jr.simulate(jr.Block(lam, r), base, motion, duration=end, **TOL)
+    ref_base = (
+        "bilinear",
+        q,
+        period,
+        mass_ratio,
+        yield_displacement,
+        1.0,
+        0.9,
+        0.1,
+        2.0,
+    )
+    theirs = ref.simulate(lam, r, ref_base, acc, end, min(step, v_step), vertical=vacc)
+    assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.ROCKING
+    assert int(ours.impacts) == theirs["impacts"] > 20
+    assert float(ours.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
