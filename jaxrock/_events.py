@@ -45,6 +45,7 @@ from ._dynamics import (
     rest_level,
     uplift_level,
 )
+from ._misc import GRAVITY
 
 
 def _by_phase(phase, translation, rising, falling):
@@ -176,17 +177,41 @@ def condition_base(t, y, args: Args, **kwargs):
     return jnp.where(bounded, jnp.maximum(outward, below), outward)
 
 
-def condition_slide(t, y, args: Args, **kwargs):
-    """mu R_y - |R_x| (m/s^2, `contact_forces`): <= 0 where the block's
-    friction can no longer hold it (or the normal force would pull).
+# A block with a `friction` passes its corner's vertical at s theta =
+# alpha (1 + CORNER_ROUNDING): located just past it, so that the segment
+# that follows starts there (`condition_slide`).
+CORNER_ROUNDING = 1e-9
 
-    Disarmed (1) once the block slid, and past its corner's vertical
-    (s theta >= alpha), where it falls over: a fall that slides at its
-    corner still ends on the block's side."""
-    del kwargs
+
+def slide_margin(t, y, args: Args):
+    """mu R_y - |R_x| (m/s^2, `contact_forces`): <= 0 where the block's
+    friction can no longer hold it (or the normal force would pull)."""
     r_x, r_y = contact_forces(t, y, args)
-    armed = ~args.slid & (args.sign * y[0] < args.block.alpha)
-    return jnp.where(armed, args.block.friction * r_y - jnp.abs(r_x), 1.0)
+    return args.block.friction * r_y - jnp.abs(r_x)
+
+
+def corner_margin(y, args: Args):
+    """g (alpha (1 + CORNER_ROUNDING) - s theta) (m/s^2): <= 0 once the
+    block passes its corner's vertical."""
+    corner = args.block.alpha * (1.0 + CORNER_ROUNDING)
+    return GRAVITY * (corner - args.sign * y[0])
+
+
+def condition_slide(t, y, args: Args, **kwargs):
+    """min(`slide_margin`, `corner_margin`): <= 0 where the block's friction
+    can no longer hold it, or where it passes its corner's vertical, past
+    which it falls over (a fall that slides at its corner still ends on
+    the block's side) and its friction is not checked: a step that ends
+    past the corner thus ends at whichever comes first, and a slide just
+    before the corner is not lost inside it. `transition` tells the two
+    apart (`EventKind.SLIDE` or `CORNER`).
+
+    Disarmed (1) once the block slid, and in a segment that starts past the
+    corner (`Args.theta_ref`)."""
+    del kwargs
+    armed = ~args.slid & (args.theta_ref < args.block.alpha)
+    margin = jnp.minimum(slide_margin(t, y, args), corner_margin(y, args))
+    return jnp.where(armed, margin, 1.0)
 
 
 def condition_stop(t, y, args: Args, **kwargs):

@@ -45,8 +45,10 @@ from ._events import (
     condition_rate,
     condition_slide,
     condition_stop,
+    corner_margin,
     never_uplifts,
     quiet,
+    slide_margin,
 )
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
@@ -402,7 +404,8 @@ class _Events(NamedTuple):
     settled: Array  # never really lifted (or an apex at theta = 0): at rest
     base_peak: Array  # "base_peak" (isolated bases)
     quiet: Array  # "quiet" (isolated bases)
-    slide: Array  # "slide" (blocks with a `friction`)
+    slide: Array  # "slide" where friction cannot hold the block
+    corner: Array  # "slide" where it passes its corner's vertical first
     flight: Array  # "flight" (vertical ground motion)
     stop: Array  # "stop" (isolators with a stop)
     towards_plus: Array  # an uplift is about the corner at x = +b
@@ -431,6 +434,7 @@ EVENT_TABLE = (
     _Rule("settled", Phase.TRANSLATION, EventKind.REST),
     _Rule("base_peak", None, EventKind.BASE_PEAK),
     _Rule("slide", None, EventKind.SLIDE),
+    _Rule("corner", None, EventKind.CORNER),
     _Rule("flight", None, EventKind.FLIGHT),  # (the analysis ends)
     _Rule("stop", None, EventKind.STOP),
 )
@@ -441,7 +445,12 @@ def _holds(ev: _Events, rest) -> dict:
     return ev._asdict() | dict(rebound=ev.impact & ~rest, rest=ev.impact & rest)
 
 
-def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
+def _decode(c: Carry, mask: Conditions, event, theta, slid=None) -> _Events:
+    """The events of a segment that ended at `theta` (rad), from the fired
+    conditions `mask`; `slid` (a block with a `friction`): whether a fired
+    "slide" is one (its `slide_margin` below its `corner_margin`), else
+    the block's passing its corner."""
+
     def hit(m):
         return jnp.asarray(False) if m is None else m & event
 
@@ -465,7 +474,8 @@ def _decode(c: Carry, mask: Conditions, event, theta) -> _Events:
         settled=(rising & guard & (c.theta_ref <= 0)) | grounded,
         base_peak=hit(mask.base_peak),
         quiet=hit(mask.quiet),
-        slide=hit(mask.slide),
+        slide=hit(mask.slide) & (slid is None or slid),
+        corner=hit(mask.slide) & (slid is not None and ~slid),
         flight=hit(mask.flight),
         stop=hit(mask.stop),
         towards_plus=angle,
@@ -673,7 +683,11 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     # The solver's mask holds the conditions present, in order: named again.
     conditions = jax.tree_util.tree_structure(event_conditions(block, base, motion))
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
-    ev = _decode(c, mask, end.event, end.y[0])
+    slid = None
+    if mask.slide is not None:
+        args = segment_args(c, block, base, motion, end.t)
+        slid = slide_margin(end.t, end.y, args) <= corner_margin(end.y, args)
+    ev = _decode(c, mask, end.event, end.y[0], slid)
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
     new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration, opts)
     return _merge_redo(c, new, active, redo, limit)

@@ -146,6 +146,9 @@ class EventKind(IntEnum):
             (`Status.FREE_FLIGHT`); the analysis ends.
         STOP: the base meets its `Stop` (|u| reaches the isolator's
             capacity) or leaves it.
+        CORNER: a block with a `friction` passes its corner's vertical
+            (|theta| = alpha), past which it falls over and its friction is
+            not checked.
 
     Examples:
         >>> import jaxrock as jr
@@ -166,6 +169,7 @@ class EventKind(IntEnum):
     SLIDE = 10  # the friction needed to hold the block reaches its own
     FLIGHT = 11  # g + a_v reaches 0: the block would leave its base
     STOP = 12  # the base meets or leaves its stop
+    CORNER = 13  # a block with a friction passes its corner's vertical
 
 
 # The defaults of every analysis (`simulate`, maps, design): integrator

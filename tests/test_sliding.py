@@ -75,6 +75,34 @@ def test_flags_sliding_where_the_reference_needs_more_friction(case):
         )
 
 
+@pytest.mark.parametrize("lam, r", [(2.154, 0.538), (2.515, 1.346)])
+def test_a_need_that_peaks_just_before_the_corner_is_flagged(lam, r):
+    """Blocks on a rolling isolator that overturn, whose need of friction
+    grows until they pass their corner's vertical (s theta = alpha), in a
+    step that also crosses it: the slide condition ends the step at the
+    corner, so the need's crossing before it is found, in `simulate` and in
+    maps (the reference here at rtol 1e-12, 64 samples a step)."""
+    pulse = (1.3213, 0.5961, 2.637, 359.12)
+    radius, rolling, mass_ratio = 0.593, 0.009, 1.503
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    ref_base = ("fps", rolling, radius, mass_ratio, 5e-4, 1.0, 0.9, 0.1, 2.0)
+    theirs = ref.simulate(
+        lam, r, ref_base, acc, t_end + 5.0, max_step,
+        friction_samples=64, rtol=1e-12, atol=1e-14,
+    )  # fmt: skip
+    need = theirs["friction_needed"]
+    base = jr.SphericalRollingIsolator(radius, rolling, mass_ratio)
+    window = TOL | dict(duration=t_end + 5.0)
+    for factor, status in ((1 - MARGIN, jr.Status.SLIDING), (1 + MARGIN, 0)):
+        block = jr.Block(lam, r, friction=need * factor)
+        ours = jr.simulate(block, base, jr.MPPulse(*pulse), **window)
+        bm = jr.behavior_map(
+            [lam], [r], base, jr.MPPulse(*pulse), friction=need * factor, **window
+        )
+        assert int(ours.status) == int(bm.status[0, 0]) == status, factor
+        assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.OVERTURNED
+
+
 def test_the_cases_reach_every_kind_of_need():
     """Translation alone (a block that never rocks), rocking beyond the
     uplift's g tan(alpha), and impacts beyond both."""
