@@ -202,16 +202,11 @@ def _impacts_to_rest(block, e, theta_dot_squared, opts):
             block, e, theta_dot_squared * e ** (2.0 * j), opts.rest_tolerance
         )
 
-    e_below_one = jnp.clip(e, 1e-300, 1.0 - 1e-16)  # the logarithm's
-    rise = (
-        e_below_one**2 * theta_dot_squared / (2.0 * block.p**2 * block.b / block.size)
-    )
-    m = (
-        jnp.floor(
-            jnp.log(opts.rest_tolerance * block.alpha / rise) / jnp.log(e_below_one**2)
-        )
-        + 1.0
-    )
+    e_below_one = jnp.clip(e, 1e-300, 1.0 - 1e-16)  # (for the logarithm)
+    sin_alpha = block.b / block.size
+    rise = e_below_one**2 * theta_dot_squared / (2.0 * block.p**2 * sin_alpha)
+    ratio = opts.rest_tolerance * block.alpha / rise
+    m = jnp.floor(jnp.log(ratio) / jnp.log(e_below_one**2)) + 1.0
     m = jnp.clip(jnp.nan_to_num(m), 1.0, 1e6)
     counted = (e > 0) & (e < 1) & ~rests(0.0) & rests(m) & ~rests(m - 1.0)
     return jnp.where(counted, m, 0.0).astype(jnp.int32), counted

@@ -445,9 +445,9 @@ def _holds(ev: _Events, rest) -> dict:
     return ev._asdict() | dict(rebound=ev.impact & ~rest, rest=ev.impact & rest)
 
 
-def _decode(c: Carry, mask: Conditions, event, theta, slid=None) -> _Events:
+def _decode(c: Carry, mask: Conditions, event, theta, slides=None) -> _Events:
     """The events of a segment that ended at `theta` (rad), from the fired
-    conditions `mask`; `slid` (a block with a `friction`): whether a fired
+    conditions `mask`; `slides` (a block with a `friction`): whether a fired
     "slide" is one (its `slide_margin` below its `corner_margin`), else
     the block's passing its corner."""
 
@@ -474,8 +474,8 @@ def _decode(c: Carry, mask: Conditions, event, theta, slid=None) -> _Events:
         settled=(rising & guard & (c.theta_ref <= 0)) | grounded,
         base_peak=hit(mask.base_peak),
         quiet=hit(mask.quiet),
-        slide=hit(mask.slide) & (slid is None or slid),
-        corner=hit(mask.slide) & (slid is not None and ~slid),
+        slide=hit(mask.slide) & (slides is None or slides),
+        corner=hit(mask.slide) & (slides is not None and ~slides),
         flight=hit(mask.flight),
         stop=hit(mask.stop),
         towards_plus=angle,
@@ -683,11 +683,11 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     # The solver's mask holds the conditions present, in order: named again.
     conditions = jax.tree_util.tree_structure(event_conditions(block, base, motion))
     mask = jax.tree_util.tree_unflatten(conditions, list(sol.event_mask))
-    slid = None
+    slides = None
     if mask.slide is not None:
         args = segment_args(c, block, base, motion, end.t)
-        slid = slide_margin(end.t, end.y, args) <= corner_margin(end.y, args)
-    ev = _decode(c, mask, end.event, end.y[0], slid)
+        slides = slide_margin(end.t, end.y, args) <= corner_margin(end.y, args)
+    ev = _decode(c, mask, end.event, end.y[0], slides)
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
     new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration, opts)
     return _merge_redo(c, new, active, redo, limit)
