@@ -511,18 +511,16 @@ class RecordSignal(AbstractSignal):
         With a vertical part, its table of lows too (`vertical_lows`: max of
         -a_v over the same ranges), for the rest rule's bound of g_eff.
         Traceable."""
-        levels = [jnp.abs(self.record.unscaled)]
-        if self.record.vertical is not None:
-            levels.append(-self.record.vertical)
-        n = levels[0].shape[-1]
-        size = sum(x.size for x in levels) * _levels(n) * levels[0].dtype.itemsize
-        if size > _PEAKS_BYTES:
+        level, vertical = jnp.abs(self.record.unscaled), self.record.vertical
+        n = level.shape[-1]
+        tables = 1 if vertical is None else 2
+        if tables * level.size * _levels(n) * level.dtype.itemsize > _PEAKS_BYTES:
             return self
-        tables = [range_maxima(x) for x in levels] + [None]
+        lows = None if vertical is None else range_maxima(-vertical)
         return eqx.tree_at(
             lambda s: (s.peaks, s.vertical_lows),
             self,
-            tuple(tables[:2]),
+            (range_maxima(level), lows),
             is_leaf=lambda x: x is None,
         )
 

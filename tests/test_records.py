@@ -322,44 +322,45 @@ def test_fema_p695_component_names_without_degrees():
     assert by_component["LANDERS/CLW-LN"].azimuth is None
 
 
-def test_a_records_acceleration_bound_is_its_largest_value():
-    """`acceleration_bound(t0, t1)` of a record is max |x_g''| over [t0, t1]
-    (x_g'' linear between samples: the samples inside and the ends), to
-    rounding, over short intervals (read sample by sample) and long ones
-    (from the table of peaks), of a record and of it scaled."""
-    rng = np.random.default_rng(1)
-    dt, n = 0.01, 500
-    record = jr.Record(rng.normal(size=n), dt, name="noise")
-    bound = eqx.filter_jit(lambda s, t0, t1: s.acceleration_bound(t0, t1))
-    values = eqx.filter_jit(lambda s, t: jax.vmap(s.acceleration)(t))
+def _bounds_against_samples(record, bound, value, extreme, seed):
+    """(exact, bound) pairs: `extreme` of `value` (a signal's method) over
+    [t0, t1] (x_g'' linear between samples: the samples inside and the
+    ends) and `bound`(t0, t1), over short intervals (read sample by sample)
+    and long ones (from the record's tables), of `record` and of it scaled."""
+    rng = np.random.default_rng(seed)
+    dt, n = float(record.dt), record.sample_count
+    bounds = eqx.filter_jit(lambda s, t0, t1: getattr(s, bound)(t0, t1))
+    values = eqx.filter_jit(lambda s, t: jax.vmap(getattr(s, value))(t))
     for signal in (prepare(record), prepare(record.scaled(2.5))):
         for length in (0.05, 0.3, 1.7, 4.0):
             for t0 in rng.uniform(-0.1, n * dt, 8):
                 t1 = t0 + length
                 times = np.concatenate([[t0, t1], np.arange(n) * dt])
                 times = times[(times >= t0) & (times <= t1)]
-                exact = np.max(np.abs(values(signal, jnp.asarray(times))))
-                got = float(bound(signal, t0, t1))
-                assert exact * (1 - 1e-12) <= got <= exact * (1 + 1e-12)
+                exact = float(extreme(values(signal, jnp.asarray(times))))
+                yield exact, float(bounds(signal, t0, t1))
+
+
+def test_a_records_acceleration_bound_is_its_largest_value():
+    """`acceleration_bound(t0, t1)` of a record is max |x_g''| over [t0, t1],
+    to rounding (the table of peaks over long intervals)."""
+    rng = np.random.default_rng(1)
+    record = jr.Record(rng.normal(size=500), 0.01, name="noise")
+    pairs = _bounds_against_samples(
+        record, "acceleration_bound", "acceleration", lambda a: np.max(np.abs(a)), 1
+    )
+    for exact, got in pairs:
+        assert exact * (1 - 1e-12) <= got <= exact * (1 + 1e-12)
 
 
 def test_a_vertical_records_gravity_bound_is_its_least_g_eff():
     """`gravity_bound(t0, t1)` of a record with a vertical part is the least
-    g_eff = g + a_v over [t0, t1], to rounding, over short intervals and
-    long ones (from the table of lows of a_v), of a record and of it scaled."""
+    g_eff = g + a_v over [t0, t1], to rounding (the table of lows of a_v
+    over long intervals)."""
     rng = np.random.default_rng(2)
-    dt, n = 0.01, 500
-    record = jr.Record(rng.normal(size=n), dt).with_vertical(
-        jr.Record(rng.normal(size=n) + 0.5, dt)
+    record = jr.Record(rng.normal(size=500), 0.01).with_vertical(
+        jr.Record(rng.normal(size=500) + 0.5, 0.01)
     )
-    bound = eqx.filter_jit(lambda s, t0, t1: s.gravity_bound(t0, t1))
-    values = eqx.filter_jit(lambda s, t: jax.vmap(s.gravity)(t))
-    for signal in (prepare(record), prepare(record.scaled(2.5))):
-        for length in (0.05, 0.3, 1.7, 4.0):
-            for t0 in rng.uniform(-0.1, n * dt, 8):
-                t1 = t0 + length
-                times = np.concatenate([[t0, t1], np.arange(n) * dt])
-                times = times[(times >= t0) & (times <= t1)]
-                exact = float(np.min(values(signal, jnp.asarray(times))))
-                got = float(bound(signal, t0, t1))
-                assert got == pytest.approx(exact, rel=1e-12)
+    pairs = _bounds_against_samples(record, "gravity_bound", "gravity", np.min, 2)
+    for exact, got in pairs:
+        assert got == pytest.approx(exact, rel=1e-12)
