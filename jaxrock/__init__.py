@@ -1,6 +1,6 @@
 """jaxrock: rigid blocks rocking on seismically isolated bases, in JAX.
 
-Importing jaxrock changes three settings of the process (the documentation's
+Importing jaxrock changes four settings of the process (the documentation's
 configuration page says what each does and how to opt out):
 
 - JAX's float64 mode (`jax_enable_x64`) is turned on. jaxrock's tolerances
@@ -17,6 +17,10 @@ configuration page says what each does and how to opt out):
   options already, JAX has computed before the import (a warning says so),
   or `JAXROCK_LOOP_KERNELS=off`; `JAXROCK_LOOP_KERNELS=flattened` adds
   `xla_cpu_flatten_after_fusion`.
+- `--xla_gpu_enable_command_buffer=+WHILE,+CONDITIONAL` is added to
+  `XLA_FLAGS`, so that on a GPU loops and conditionals run on the device as
+  CUDA graphs, unless `XLA_FLAGS` sets XLA's command buffers already or JAX
+  has computed before the import.
 """
 
 import importlib.metadata
@@ -25,9 +29,10 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-from ._xla import compile_loops_whole  # noqa: E402
+from ._xla import compile_loops_whole, control_flow_as_gpu_graphs  # noqa: E402
 
 compile_loops_whole()
+control_flow_as_gpu_graphs()
 
 from ._cache import enable_compilation_cache  # noqa: E402
 

@@ -21,10 +21,11 @@ from ._misc import is_count
 # page, "Choices in the code", has the timings of 32, 64 and 128).
 CPU_LANE_WIDTH = 64
 # Lanes of one compiled loop on an accelerator (a GPU): each iteration of the
-# loop is a sequence of kernel launches whose cost hardly depends on the
-# number of lanes, so the lanes are as many as keep the chunk's tail short
-# (benchmarks/device.py measures the choice).
-ACCELERATOR_LANE_WIDTH = 65536
+# loop is a sequence of kernel launches whose cost grows slowly with the
+# number of lanes, so the lanes are as many as keep the chunk's tail short:
+# a million analyses under a record keep 131,072 lanes 91% busy, and 262,144
+# lanes 68% (benchmarks/device.py --lanes measures the choice).
+ACCELERATOR_LANE_WIDTH = 131072
 
 # Cells a chunk holds by default when chunks are units of work for a store or
 # an executor (`chunk_size`).

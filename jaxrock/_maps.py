@@ -230,7 +230,7 @@ def behavior_map(
     default: 610 with a store or an executor, else as few chunks as keep the
     devices busy: on a CPU a multiple of its cores, of at most 8,192 cells
     each; on a GPU one chunk per GPU of up to 1,048,576 cells) through one
-    compiled loop on vmapped lanes (64 on a CPU, 65,536 on a GPU); each
+    compiled loop on vmapped lanes (64 on a CPU, 131,072 on a GPU); each
     iteration advances every lane by one solver step, and a lane that
     finishes takes the chunk's next cell (the "flat loop", `_flat.py`). The
     pure-translation phase before uplift runs once per base, motion and

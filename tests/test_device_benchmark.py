@@ -33,3 +33,22 @@ def test_device_benchmark_runs_and_matches_the_cpu_maps(tmp_path):
         assert row["cpu_outcomes_differ"] == 0, row["map"]
         assert row["cpu_max_rotation_delta"] == 0.0, row["map"]
     assert (tmp_path / "device-cpu-tiny.md").read_text().startswith("cpu (cpu)")
+
+
+def test_xla_options_benchmark_runs_each_setting_and_compares_its_maps(tmp_path):
+    """Each setting in its own process, its flags in its `XLA_FLAGS`; on the
+    CPU, which ignores the GPU's command buffers, the maps are identical."""
+    command = [sys.executable, "xla_gpu_options.py", "--tiny", "--repeats", "0"]
+    command += ["--maps", "pulse, fixed", "--results", str(tmp_path)]
+    subprocess.run(
+        command, cwd=BENCHMARKS, env=dict(os.environ), check=True, timeout=1200
+    )
+    rows = json.loads((tmp_path / "xla_gpu_options-cpu-tiny.json").read_text())
+    assert [(r["setting"], r["map"]) for r in rows] == [
+        ("host", "pulse, fixed"),
+        ("graphs", "pulse, fixed"),
+    ]
+    assert rows[1]["flags"].endswith("=+WHILE,+CONDITIONAL")
+    for row in rows:
+        assert row["same"] == "yes" and row["failed"] == 0
+        assert row["run_s"] > 0 and row["run_ratio"] > 0

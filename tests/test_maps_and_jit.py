@@ -100,14 +100,14 @@ def test_automatic_chunks(monkeypatch):
 
 def test_automatic_chunks_on_a_gpu():
     """On an accelerator a map is one chunk per device, of up to 2**20
-    cells, on 65,536 lanes; a small map's chunk is no larger than a power of
+    cells, on 131,072 lanes; a small map's chunk is no larger than a power of
     two that holds it (its lanes too: idle lanes would still compute)."""
 
     class Gpu:
         platform = "gpu"
 
     gpu = [Gpu()]
-    assert _layout.lane_width("gpu") == _layout.ACCELERATOR_LANE_WIDTH == 65536
+    assert _layout.lane_width("gpu") == _layout.ACCELERATOR_LANE_WIDTH == 131072
     assert _layout.lane_width("cpu") == 64
     assert _layout.chunk_plan(2440, "auto", gpu) == (2440, 4096, 1)
     assert _layout.chunk_plan(10**6, "auto", gpu) == (10**6, 1 << 20, 1)

@@ -97,6 +97,36 @@ def test_too_late_once_jax_has_computed(fresh):
         assert not _xla.compile_loops_whole()
 
 
+def test_gpu_graphs_are_added_to_the_users_flags(fresh):
+    fresh.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    assert _xla.control_flow_as_gpu_graphs()
+    assert os.environ["XLA_FLAGS"].split() == [
+        "--xla_force_host_platform_device_count=2",
+        "--xla_gpu_enable_command_buffer=+WHILE,+CONDITIONAL",
+    ]
+    assert _xla.control_flow_as_gpu_graphs()  # once only
+    assert os.environ["XLA_FLAGS"].count("command_buffer") == 1
+
+
+def test_the_users_command_buffers_are_kept(fresh):
+    own = "--xla_gpu_enable_command_buffer=-WHILE,-CONDITIONAL"
+    fresh.setenv("XLA_FLAGS", own)
+    assert not _xla.control_flow_as_gpu_graphs()
+    assert os.environ["XLA_FLAGS"] == own
+
+
+def test_gpu_graphs_too_late_once_jax_has_computed(fresh):
+    fresh.setattr(jax._src.xla_bridge, "backends_are_initialized", lambda: True)
+    assert not _xla.control_flow_as_gpu_graphs()
+    assert "XLA_FLAGS" not in os.environ
+
+
+def test_this_process_has_both_options():
+    """`import jaxrock` (in conftest, before JAX computes) set both."""
+    flags = os.environ["XLA_FLAGS"]
+    assert _xla.GPU_GRAPHS in flags and _xla.OPTION in flags
+
+
 def test_compiler_options_this_xla_does_not_take_are_left_out(monkeypatch):
     """XLA refuses a program with an option it does not know (jaxlib 0.11 has
     no xla_cpu_use_fusion_emitters): a pulse map's loop then compiles with
