@@ -178,8 +178,9 @@ def condition_base(t, y, args: Args, **kwargs):
 
 
 # A block with a `friction` passes its corner's vertical at s theta =
-# alpha (1 + CORNER_ROUNDING): located just past it, so that the segment
-# that follows starts there (`condition_slide`).
+# alpha (1 + CORNER_ROUNDING), and comes back over it at alpha (1 -
+# CORNER_ROUNDING): each located just beyond the corner, so that the segment
+# that follows starts on its side of it (`condition_slide`).
 CORNER_ROUNDING = 1e-9
 
 
@@ -197,6 +198,12 @@ def corner_margin(y, args: Args):
     return GRAVITY * (corner - args.sign * y[0])
 
 
+def checks_friction(args: Args):
+    """Whether a segment checks the block's friction: it starts on the near
+    side of the corner (`Args.theta_ref`), and the block has not slid."""
+    return ~args.slid & (args.theta_ref < args.block.alpha)
+
+
 def condition_slide(t, y, args: Args, **kwargs):
     """min(`slide_margin`, `corner_margin`): <= 0 where the block's friction
     can no longer hold it, or where it passes its corner's vertical, past
@@ -206,12 +213,15 @@ def condition_slide(t, y, args: Args, **kwargs):
     before the corner is not lost inside it. `transition` tells the two
     apart (`EventKind.SLIDE` or `CORNER`).
 
-    Disarmed (1) once the block slid, and in a segment that starts past the
-    corner (`Args.theta_ref`)."""
+    In a segment that starts past the corner (`Args.theta_ref`), g (s theta
+    - alpha (1 - CORNER_ROUNDING)): <= 0 where the block comes back over
+    its corner (`EventKind.CORNER`), and the next segment checks its
+    friction again. Disarmed (1) once the block slid."""
     del kwargs
-    armed = ~args.slid & (args.theta_ref < args.block.alpha)
     margin = jnp.minimum(slide_margin(t, y, args), corner_margin(y, args))
-    return jnp.where(armed, margin, 1.0)
+    near = GRAVITY * (args.sign * y[0] - args.block.alpha * (1.0 - CORNER_ROUNDING))
+    margin = jnp.where(args.theta_ref < args.block.alpha, margin, near)
+    return jnp.where(args.slid, 1.0, margin)
 
 
 def condition_stop(t, y, args: Args, **kwargs):

@@ -45,6 +45,7 @@ from ._events import (
     condition_rate,
     condition_slide,
     condition_stop,
+    checks_friction,
     corner_margin,
     never_uplifts,
     quiet,
@@ -686,7 +687,9 @@ def transition(c: Carry, sol, block, base, motion, duration, opts, limit=None) -
     slides = None
     if mask.slide is not None:
         args = segment_args(c, block, base, motion, end.t)
-        slides = slide_margin(end.t, end.y, args) <= corner_margin(end.y, args)
+        slides = checks_friction(args) & (
+            slide_margin(end.t, end.y, args) <= corner_margin(end.y, args)
+        )
     ev = _decode(c, mask, end.event, end.y[0], slides)
     y, rest = _apply_jumps(ev, end.t, end.y, block, base, motion, opts)
     new = _advance(c, end, ev, y, rest, sol, block, base, motion, duration, opts)

@@ -148,7 +148,7 @@ class EventKind(IntEnum):
             capacity) or leaves it.
         CORNER: a block with a `friction` passes its corner's vertical
             (|theta| = alpha), past which it falls over and its friction is
-            not checked.
+            not checked, or comes back over it.
 
     Examples:
         >>> import jaxrock as jr
@@ -169,7 +169,7 @@ class EventKind(IntEnum):
     SLIDE = 10  # the friction needed to hold the block reaches its own
     FLIGHT = 11  # g + a_v reaches 0: the block would leave its base
     STOP = 12  # the base meets or leaves its stop
-    CORNER = 13  # a block with a friction passes its corner's vertical
+    CORNER = 13  # a block with a friction passes its corner's vertical, either way
 
 
 # The defaults of every analysis (`simulate`, maps, design): integrator

@@ -103,6 +103,33 @@ def test_a_need_that_peaks_just_before_the_corner_is_flagged(lam, r):
         assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.OVERTURNED
 
 
+@pytest.mark.parametrize(
+    "pulse, lam, r",
+    [((1.3213, 0.5961, 2.637, 359.12), 2.4, 0.4), ((1.5, 0.5, 3.0, 180.0), 1.95, 0.4)],
+)
+def test_a_need_after_the_block_comes_back_over_its_corner_is_flagged(pulse, lam, r):
+    """Blocks on a linear isolator that pass their corner's vertical, reach
+    their apex past it, come back over it and land, then overturn: the
+    segment that starts past the corner checks no friction and ends where
+    the block comes back over it, so that the next one checks it again, and
+    the largest need, on the way down to the impact, is found."""
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    ref_base = ("linear", 2.0, 0.35, 0.5)
+    theirs = ref.simulate(
+        lam, r, ref_base, acc, t_end + 5.0, max_step,
+        friction_samples=32, rtol=1e-12, atol=1e-14,
+    )  # fmt: skip
+    need = theirs["friction_needed"]
+    base, motion = jr.LinearIsolator(2.0, 0.35, 0.5), jr.MPPulse(*pulse)
+    window = TOL | dict(duration=t_end + 5.0)
+    for factor, status in ((1 - MARGIN, jr.Status.SLIDING), (1 + MARGIN, 0)):
+        block = jr.Block(lam, r, friction=need * factor)
+        ours = jr.simulate(block, base, motion, **window)
+        bm = jr.behavior_map([lam], [r], base, motion, friction=need * factor, **window)
+        assert int(ours.status) == int(bm.status[0, 0]) == status, factor
+        assert int(ours.outcome) == theirs["outcome"] == jr.Outcome.OVERTURNED
+
+
 def test_the_cases_reach_every_kind_of_need():
     """Translation alone (a block that never rocks), rocking beyond the
     uplift's g tan(alpha), and impacts beyond both."""
