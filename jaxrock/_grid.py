@@ -11,6 +11,7 @@ import numpy as np
 from ._block import Block
 from ._misc import broadcast_batch_shape
 from ._model import initial_carry
+from ._results import _max_steps_for
 from ._scene import MotionLayout, prepare
 
 
@@ -148,9 +149,12 @@ class Grid:
 
     def store_key(self, duration, chunk, opts) -> str:
         """What identifies the map's chunks in a store (the keys of a map
-        with neither `until_decided`, its own restitution nor a friction are
-        those of the maps before any existed: their stores resume)."""
+        with neither `until_decided`, its own restitution, a friction nor a
+        step limit other than its motion's default are those of the maps
+        before any existed: their stores resume)."""
         extra = {}
+        if opts.max_steps != _max_steps_for(self.motion, None):
+            extra["max_steps"] = opts.max_steps
         if bool(opts.until_decided):
             extra["until_decided"] = True
         if self.restitution is not None:

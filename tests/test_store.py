@@ -63,6 +63,23 @@ def test_store_resumes_without_recomputing(tmp_path, monkeypatch, linear_map):
         )
 
 
+def test_a_store_of_another_step_limit_is_another_maps(tmp_path):
+    """A map run again with the step limit its statuses point to does not
+    read the chunks that hit the old one; its motion's default limit, named
+    or not, is one map."""
+    fixed, lam, size = jr.FixedBase(), LAM[1:4], SIZE[:2]
+    short = jr.behavior_map(lam, size, fixed, PULSE, max_steps=3, store=tmp_path)
+    assert np.all(short.status == jr.Status.MAX_STEPS)
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(lam, size, fixed, PULSE, store=tmp_path)
+    full = jr.behavior_map(lam, size, fixed, PULSE, store=tmp_path / "full")
+    assert np.all(full.status == jr.Status.SUCCESS)
+    again = jr.behavior_map(
+        lam, size, fixed, PULSE, max_steps=16384, store=tmp_path / "full"
+    )
+    np.testing.assert_array_equal(again.max_rotation, full.max_rotation)
+
+
 def test_store_refuses_another_maps_chunks_without_its_manifest(tmp_path):
     """Each chunk carries its map's key: with the manifest gone, a map of
     another pulse into the same store is refused, not mixed in."""
