@@ -1213,8 +1213,8 @@ def _run_spectrum(a) -> int:
     from jaxrock import plot
 
     block = jr.Block(a.slenderness, a.size)
-    _check_base_options(a)
-    bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [_base(a)])
+    base = _base(a)
+    bases = [jr.FixedBase()] + ([] if a.base == "fixed" else [base])
     spectra = [
         jr.overturning_spectrum(
             block, b, a.frequency_ratio, a.amplitude_ratio, progress=False

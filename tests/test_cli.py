@@ -94,6 +94,7 @@ def _run(args, cwd, python_code=None):
         ),
         (["simulate", "--base", "fps", "--damping", "0.2"], "one of --base linear"),
         (["spectrum", "--base", "linear", "--radius", "1"], "--radius is not"),
+        (["spectrum", "--base", "fixed", "--capacity", "0.1"], "are an isolator's"),
         (["map", "--stop-damping", "0.3"], "--stop-damping is a stop's"),
     ],
 )
