@@ -707,7 +707,8 @@ def fragility(
 
     Raises:
         ValueError: an unknown measure, a batch of bases, `scales` not all
-            > 0, a single unscaled motion, a motion that does not move the
+            > 0, a single unscaled motion, a single motion with `scales` and
+            a measure that does not grow with its amplitude, a motion that does not move the
             ground, or `damage_states` that are malformed, do not nest, ask
             for a rotation of pi / (2 alpha) or more, or for the displacement
             of a fixed base.
@@ -761,6 +762,14 @@ def _scaled(motions, scales, levels, measure, slenderness, size):
     if levels is not None:
         motions, levels = _stripes(motions, levels, measure, slenderness, size)
         return motions, None, levels
+    if scales is not None and motions.batch_shape == ():
+        name, _ = parse_measure(measure)
+        if _POWERS.get(name, 1.0) is None:
+            raise ValueError(
+                f"`measure` {measure!r} does not grow with a motion's amplitude: "
+                "one motion at every factor of `scales` has one value of it, "
+                "which no fit can use (use another measure, or a suite of motions)"
+            )
     motions, scales = _ensemble(motions, scales)
     return motions, scales, None
 

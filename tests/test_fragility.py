@@ -304,6 +304,17 @@ def test_a_multiple_stripe_analysis_is_the_binomial_fit_of_its_stripes():
         jr.fragility(4.0, 1.0, jr.FixedBase(), suite, levels=levels, scales=[1.0])
 
 
+@pytest.mark.parametrize("measure", ["tp", "d5_95", "frequency_ratio"])
+def test_one_motion_scaled_against_a_measure_it_does_not_scale_is_refused(measure):
+    """Such a measure is one number over the analyses: no fit (NaN) is
+    possible, and the error says why before any analysis runs."""
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    with pytest.raises(ValueError, match=f"`measure` '{measure}' does not grow"):
+        jr.fragility(
+            4.0, 1.0, jr.FixedBase(), pulse, scales=[0.5, 1.0], measure=measure
+        )
+
+
 def test_a_bootstrap_band_over_records_holds_the_fit():
     """`confidence_band`: records drawn with replacement and refitted; the
     band holds the fitted curve where it is uncertain, widens with the
