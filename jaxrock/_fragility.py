@@ -708,8 +708,9 @@ def fragility(
     Raises:
         ValueError: an unknown measure, a batch of bases, `scales` not all
             > 0, a single unscaled motion, a single motion with `scales` and
-            a measure that does not grow with its amplitude, a motion that does not move the
-            ground, or `damage_states` that are malformed, do not nest, ask
+            a measure that does not grow with its amplitude, a motion that
+            does not move the ground, or `damage_states` that are malformed,
+            do not nest, ask
             for a rotation of pi / (2 alpha) or more, or for the displacement
             of a fixed base.
 
