@@ -710,9 +710,8 @@ def fragility(
             > 0, a single unscaled motion, a single motion with `scales` and
             a measure that does not grow with its amplitude, a motion that
             does not move the ground, or `damage_states` that are malformed,
-            do not nest, ask
-            for a rotation of pi / (2 alpha) or more, or for the displacement
-            of a fixed base.
+            do not nest, ask for a rotation of pi / (2 alpha) or more, or for
+            the displacement of a fixed base.
 
     Examples:
         >>> import jaxrock as jr

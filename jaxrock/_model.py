@@ -37,6 +37,7 @@ from ._dynamics import (
     uplift_level,
 )
 from ._events import (
+    checks_friction,
     condition_angle,
     condition_base,
     condition_flight,
@@ -45,7 +46,6 @@ from ._events import (
     condition_rate,
     condition_slide,
     condition_stop,
-    checks_friction,
     corner_margin,
     never_uplifts,
     quiet,
