@@ -386,6 +386,15 @@ def _value_and_grad_of(make_base, scale: "_Scaling", problem: tuple, x: dict):
             f"got {type(base).__name__}"
         )
     names = scale.names
+    for k in names:  # the ends of each bound, the others at x
+        for end in (0.0, 1.0):
+            try:
+                base_at(x | {k: jnp.asarray(end)})
+            except ValueError as e:
+                which = "low" if end == 0.0 else "high"
+                raise ValueError(
+                    f"bounds[{k!r}]: `make_base` fails at its {which} end: {e}"
+                ) from None
     units = [{j: jnp.asarray(float(j == k)) for j in names} for k in names]
 
     def value_and_grad(x):

@@ -15,7 +15,7 @@ from ._intensity import intensity_measure, measure_attrs, parse_measure
 from ._isolators import AbstractIsolator, FixedBase
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import grid_axis, positive, unbatched
+from ._misc import grid_axis, one_real_number, positive, unbatched
 from ._model import check_base_and_motion
 from ._record import Record
 from ._results import Outcome, Status
@@ -722,7 +722,8 @@ def fragility(
     parse_measure(measure)
     check_base_and_motion(base, motions)
     unbatched("base", base, "fragility")
-    positive("slenderness", slenderness)
+    for name, x in (("slenderness", slenderness), ("size", size)):
+        positive(name, one_real_number(name, x, "finite and > 0"))
     states, parsed = check_damage_states(damage_states, slenderness, base)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)

@@ -787,11 +787,15 @@ def check_base_and_motion(base, motion):
     """`ValueError` unless `base` is an isolator and `motion` a ground motion."""
     if not isinstance(base, AbstractIsolator):
         raise ValueError(
-            "`base` must be FixedBase, LinearIsolator or FrictionPendulum, got "
+            "`base` must be an isolator, a jaxrock.AbstractIsolator (FixedBase, "
+            "LinearIsolator, FrictionPendulum, BilinearIsolator, "
+            "SphericalRollingIsolator, ConicalRollingIsolator, "
+            "IntegratedFrictionPendulum or a subclass of your own), got "
             f"{type(base).__name__}"
         )
     if not isinstance(motion, AbstractGroundMotion):
         raise ValueError(
-            "`motion` must be an MPPulse, SinePulse or Record, got "
-            f"{type(motion).__name__}"
+            "`motion` must be a ground motion, a jaxrock.AbstractGroundMotion "
+            "(MPPulse, SinePulse, Record, one of these with a vertical part, or "
+            f"a subclass of your own), got {type(motion).__name__}"
         )

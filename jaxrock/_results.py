@@ -240,14 +240,16 @@ class SolverOptions(AbstractChecked):
             integer >= 1; default 2000.
         rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
             >= 0; default 1e-6.
-        solver: a Diffrax solver; default `diffrax.Tsit5()`.
+        solver: an adaptive Diffrax solver of one ODE term (an instance);
+            default `diffrax.Tsit5()`.
         step: a fixed step (s), > 0, instead of the step-size controller;
             events are then located at step ends only (no root find), a
             naive baseline for comparisons. Default None.
 
     Raises:
-        ValueError: a concrete tolerance or step out of its range, or a limit
-            that is not an integer >= 1 (the message names it).
+        ValueError: a concrete tolerance or step out of its range, a limit
+            that is not an integer >= 1, or a `solver` that is not an
+            adaptive Diffrax solver (the message names it).
 
     Examples:
         >>> import jaxrock as jr
@@ -280,6 +282,18 @@ class SolverOptions(AbstractChecked):
             value = getattr(self, name)
             if not is_count(value) or value < 1:
                 raise ValueError(f"`{name}` must be an integer >= 1, got {value!r}")
+        # The step-size controller reads the solver's error estimate, and the
+        # equations are one ODE term.
+        solver = self.solver
+        if not (
+            isinstance(solver, diffrax.AbstractAdaptiveSolver)
+            and solver.term_structure is diffrax.AbstractTerm
+        ):
+            raise ValueError(
+                "`solver` must be an adaptive Diffrax solver of one ODE term, an "
+                "instance such as diffrax.Tsit5(), diffrax.Dopri8() or "
+                f"diffrax.Kvaerno5(), got {solver!r}"
+            )
 
     def constraints(self):
         out = [

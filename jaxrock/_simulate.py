@@ -538,8 +538,8 @@ def simulate(
     Raises:
         ValueError: a `block`, `base` or `motion` of the wrong type or with
             batch axes, a `duration` or `history_step` that is not one
-            number > 0, or a concrete option out of its range (the message
-            names it).
+            number > 0, a `history_step` without `history`, or a concrete
+            option out of its range (the message names it).
 
     Examples:
         >>> import jaxrock as jr
@@ -560,7 +560,11 @@ def simulate(
         solver=solver,
     )
     motion = motion.unlabeled()  # labels are static: they would recompile
+    if not isinstance(history, (bool, np.bool_)):
+        raise ValueError(f"`history` must be True or False, got {history!r}")
     if not history:
+        if history_step is not None:
+            raise ValueError("`history_step` is read only with `history=True`")
         return _run_jit(block, base, motion, duration, opts)
     history_step = _history_step(history_step, float(duration))
     result, hist = _history(block, base, motion, duration, opts, history_step)

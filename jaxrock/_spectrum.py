@@ -150,6 +150,9 @@ def overturning_spectrum(
     positive("frequency_ratio", fr)
     positive("amplitude_ratio", ar)
     unbatched("base", base, "spectrum")
+    if not isinstance(block, Block):
+        raise ValueError(f"`block` must be a Block, got {type(block).__name__}")
+    unbatched("block", block, "spectrum")
     p = float(block.p)
     uplift = float(block.uplift_acceleration)
     F, A = np.meshgrid(fr, ar, indexing="ij")

@@ -447,7 +447,7 @@ def _add_motion_options(q, suites: bool = True) -> None:
         )
     q.add_argument(
         "--scale",
-        type=float,
+        type=_positive_float,
         default=1.0,
         help="factor on the amplitude of the motion",
     )

@@ -4,6 +4,7 @@ plausible number."""
 
 import math
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -247,6 +248,45 @@ def test_bad_values_name_the_parameter(make, message):
             ),
             "`base` must be one base",
         ),
+        (lambda: jr.simulate(jr.Block(3.0, 1.0), None, PULSE), "`base` must be an iso"),
+        (
+            lambda: jr.simulate(jr.Block(3.0, 1.0), jr.FixedBase(), np.ones(3)),
+            "`motion` must be a ground motion",
+        ),
+        (
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0), jr.FixedBase(), PULSE, solver=diffrax.Euler()
+            ),
+            "`solver` must be an adaptive Diffrax solver",
+        ),
+        (
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0), jr.FixedBase(), PULSE, solver=diffrax.Tsit5
+            ),
+            "`solver` must be",
+        ),
+        (
+            lambda: jr.simulate(jr.Block(3.0, 1.0), jr.FixedBase(), PULSE, history="y"),
+            "`history` must be True or False",
+        ),
+        (
+            lambda: jr.simulate(
+                jr.Block(3.0, 1.0), jr.FixedBase(), PULSE, history_step=0.01
+            ),
+            "`history_step` is read only with `history=True`",
+        ),
+        (
+            lambda: jr.overturning_spectrum(
+                jr.Block(np.array([3.0, 4.0]), 1.0), jr.FixedBase(), [1.0], [1.0]
+            ),
+            "`block` must be one block",
+        ),
+        (
+            lambda: jr.fragility(
+                np.array([3.0, 4.0]), 1.0, jr.FixedBase(), PULSE, scales=[1.0, 2.0]
+            ),
+            "`slenderness` must be one number, finite and > 0",
+        ),
         # A target of another shape than the records'.
         (lambda: _RECORD.scaled_to(pga=[1.0, 2.0]), "`pga` must be one number or"),
         (
@@ -286,6 +326,11 @@ def _tune(**overrides):
         (dict(init={}), "`init` must be a non-empty dict"),
         (dict(bounds={"period": (1.0, float("inf"))}), r"bounds\['period'\]"),
         (dict(make_base=lambda p: jr.FixedBase()), "`make_base` must return"),
+        # An isolator that does not exist at an end of the bounds.
+        (
+            dict(bounds={"period": (0.0, 3.0)}),
+            r"bounds\['period'\]: `make_base` fails at its low end: `period` must",
+        ),
     ],
 )
 def test_tune_isolator_checks_its_arguments(overrides, message):

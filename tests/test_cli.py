@@ -104,6 +104,14 @@ def test_cli_errors_are_one_line(argv, message, capsys):
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
 
 
+def test_cli_a_scale_out_of_range_names_the_option(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "--scale", "-1"])
+    assert exc.value.code == 2
+    err = _one_error_line(capsys.readouterr().err)
+    assert "argument --scale: must be finite and > 0, got -1" in err
+
+
 @pytest.mark.parametrize(
     "argv",
     [
