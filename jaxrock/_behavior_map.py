@@ -2,7 +2,9 @@
 through xarray, and NumPy's .npz)."""
 
 import json
+import os
 import zipfile
+from pathlib import Path
 
 import equinox as eqx
 import numpy as np
@@ -296,15 +298,20 @@ class BehaviorMap(eqx.Module):
 
         Args:
             path: the file's path (str or path-like), ending in `.npz`, `.nc`
-                or `.zarr`; NumPy appends `.npz` to a name without a suffix.
+                or `.zarr` (in any case: `map.NPZ` is a `.npz` file, written
+                at that name); a name without a suffix gets `.npz` appended
+                (`map` writes `map.npz`, which `load("map")` reads).
 
         The file is written under a temporary name beside `path` and renamed
         over it once whole (`.zarr`: the folder): a full disk or an
-        interruption leaves a file already at `path` as it was.
+        interruption leaves a file already at `path` as it was, and no
+        temporary file.
 
         Raises:
-            ValueError: any other suffix, or a `.zarr` path that exists and is
-                not a Zarr store.
+            ValueError: any other suffix, an empty `path`, a `.npz` or `.nc`
+                path that names a folder (an existing one, or one ending in a
+                separator), or a `.zarr` path that exists and is not a Zarr
+                store.
             OSError: the file cannot be written (a full disk, no permission);
                 the message names `path`.
 
@@ -318,6 +325,8 @@ class BehaviorMap(eqx.Module):
             True
         """
         kind = suffix(path)
+        if kind != ".zarr":
+            path = _file(path, kind)
         if kind != ".npz":
             write(self.to_xarray(), path, kind)
             return
@@ -331,19 +340,15 @@ class BehaviorMap(eqx.Module):
         meta = {k: None if v != v else v for k, v in meta.items()}
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
         metadata = json.dumps(meta, allow_nan=False)
-        if not str(path).endswith(".npz"):  # the name NumPy would write
-            path = f"{path}.npz"
-        atomic_write(
-            path,
-            lambda tmp: np.savez_compressed(tmp, metadata=np.array(metadata), **arrays),
-        )
+        atomic_write(path, lambda tmp: _savez(tmp, metadata, arrays))
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
         """Read a map written by `BehaviorMap.save` (`.npz`, `.nc` or `.zarr`).
 
         Args:
-            path: the file's path (str or path-like).
+            path: the file's path (str or path-like), as given to `save`: a
+                name without a suffix reads the name with `.npz` appended.
 
         Returns:
             The `BehaviorMap`, with the arrays, coordinates and metadata saved.
@@ -368,7 +373,7 @@ class BehaviorMap(eqx.Module):
         try:
             if kind != ".npz":
                 return cls.from_xarray(read(path, kind))
-            return cls._load_npz(path)
+            return cls._load_npz(_file(path, kind))
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
             raise ValueError(
                 f"{str(path)!r} is not a behavior map written by "
@@ -394,6 +399,37 @@ class BehaviorMap(eqx.Module):
                 raise ValueError(f"coordinates name {len(c.dims)} leading axes")
             out["coordinates"] = c
         return cls(**arrays, **out)
+
+
+def _file(path, kind: str) -> str:
+    """The file of a map in format `kind` (".npz" or ".nc") at `path`: `path`
+    itself, with ".npz" appended to a `.npz` name without a suffix; a
+    `ValueError` naming `path` if it is empty or names a folder (or its
+    ".npz" name does)."""
+    name = os.fsdecode(path)
+    if not name:
+        raise ValueError(
+            "`path` is empty: give a file name ending in .npz, .nc or .zarr"
+        )
+    file = name
+    if kind == ".npz" and not name.lower().endswith(".npz"):
+        file = f"{name}.npz"
+    if name.endswith(("/", os.sep)) or os.path.isdir(name) or os.path.isdir(file):
+        raise ValueError(f"`path` {name!r} is a folder, not a file")
+    return file
+
+
+def _savez(tmp: Path, metadata: str, arrays: dict) -> None:
+    """Write a map's .npz file at `tmp`. NumPy appends ".npz" to a name that
+    does not end in it (a temporary name of `map.NPZ`): the file is written
+    at that name and moved to `tmp`, or removed if writing fails."""
+    named = tmp if tmp.name.endswith(".npz") else tmp.with_name(f"{tmp.name}.npz")
+    try:
+        np.savez_compressed(named, metadata=np.array(metadata), **arrays)
+        os.replace(named, tmp)
+    except BaseException:
+        named.unlink(missing_ok=True)
+        raise
 
 
 def _metadata(meta: dict) -> dict:

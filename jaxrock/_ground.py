@@ -461,13 +461,16 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
     Args:
         name: the record, e.g. "Northridge JFA/SN" (event, station and
             component).
-        scale: the factor (-) on the amplitude A; default 1.
+        scale: the factor (-) on the amplitude A, one real number, finite
+            and > 0; default 1.
 
     Returns:
         The `MPPulse`.
 
     Raises:
-        ValueError: an unknown `name` (the message lists the known ones).
+        ValueError: an unknown `name` (the message lists the known ones), or
+            a `scale` that is not one real number, finite and > 0 (a string,
+            a boolean, None or an array is refused, not converted).
 
     Examples:
         >>> import jaxrock as jr
@@ -480,6 +483,9 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
         raise ValueError(
             f"unknown pulse {name!r}; choose one of: {', '.join(NEAR_FAULT_PULSES)}"
         )
-    scale = float(scale_factors(scale, "scale"))
+    scale = scale_factors(scale, "scale")
+    if scale.ndim:
+        raise ValueError(f"`scale` must be one number, got shape {scale.shape}")
+    scale = float(scale)
     amplitude_cm, gamma, phase, frequency = _TABLE_3_1[name]
     return MPPulse(scale * amplitude_cm / 100.0, frequency, gamma, phase)

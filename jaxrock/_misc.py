@@ -151,8 +151,17 @@ def unbatched(name: str, module, result: str) -> None:
 
 
 def scale_factors(factor, name: str = "factor") -> np.ndarray:
-    """Scale factors as an array, each finite and > 0 (`ValueError` naming
-    `name` else)."""
+    """Scale factors as an array of real numbers, each finite and > 0
+    (`ValueError` naming `name` else: a string, a bool or None is refused,
+    not converted)."""
+    kind = None
+    if not isinstance(factor, (str, bytes, bool)) and factor is not None:
+        try:
+            kind = np.asarray(factor).dtype.kind
+        except (TypeError, ValueError):
+            pass
+    if kind not in ("f", "i", "u"):
+        raise ValueError(f"`{name}` must be finite and > 0, got {factor!r}")
     factor = np.asarray(factor, dtype=float)
     if factor.size == 0 or not np.all(np.isfinite(factor) & (factor > 0)):
         raise ValueError(f"`{name}` must be finite and > 0, got {factor.tolist()}")

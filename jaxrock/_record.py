@@ -1,6 +1,7 @@
 """Recorded accelerograms: one record, or a suite of records of different
 lengths and time steps, with their labels."""
 
+import math
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -59,6 +60,11 @@ def is_vertical(record: "Record") -> bool:
     comma-separated part is one of UP, DWN, DOWN, V, VER or VERT (any case),
     as the second header line of a PEER NGA file names it.
 
+    Raises:
+        ValueError: `record` is not a `Record` (a closed-form motion, such as
+            `MPPulse`, has no name to tell its component by), or is a suite
+            (ask of each record, `record.select(i)`).
+
     Examples:
         >>> import numpy as np, jaxrock as jr
         >>> down = jr.Record(np.zeros(3), 0.01, name="Pacoima Dam, DWN")
@@ -66,6 +72,16 @@ def is_vertical(record: "Record") -> bool:
         >>> jr.records.is_vertical(down), jr.records.is_vertical(east)
         (True, False)
     """
+    if not isinstance(record, Record):
+        raise ValueError(
+            "`record` must be a Record, whose name gives its component, got "
+            f"{type(record).__name__}"
+        )
+    if isinstance(record.name, tuple):
+        raise ValueError(
+            f"`record` must be one record, not a suite of {len(record.name)}: "
+            "ask of each record (`record.select(i)`)"
+        )
     return component(record) in VERTICAL_COMPONENTS
 
 
@@ -354,7 +370,26 @@ class Record(AbstractGroundMotion):
 
     def select(self, index) -> "Record":
         """Records by position in the suite (its motion axes flattened, C
-        order): an int gives one record, an array of ints a suite."""
+        order): an int gives one record, an array of ints a suite.
+
+        Raises:
+            ValueError: a concrete `index` that is not an integer (or an array
+                of integers) in [-count, count), count being the number of
+                records (the message names the range).
+        """
+        try:
+            chosen = np.asarray(index)
+        except jax.errors.TracerArrayConversionError:  # inside compiled code
+            chosen = None
+        count = math.prod(self.batch_shape)
+        if chosen is not None and (
+            chosen.dtype.kind not in "iu"
+            or ((chosen < -count) | (chosen >= count)).any()
+        ):
+            what = "an integer" if chosen.ndim == 0 else "integers"
+            raise ValueError(
+                f"`index` must be {what} in [{-count}, {count}), got {index!r}"
+            )
         n = self.sample_count
 
         def pick(unscaled):
@@ -369,10 +404,6 @@ class Record(AbstractGroundMotion):
         samples, vertical = pick(self.unscaled), pick(self.vertical)
         dt = jnp.reshape(self.dt, -1)[index]
         length = jnp.reshape(self.length, -1)[index]
-        try:
-            chosen = np.asarray(index)
-        except jax.errors.TracerArrayConversionError:  # inside compiled code
-            chosen = None
         picked = {}
         for key, values in self.labels(flat=True).items():
             if chosen is None:

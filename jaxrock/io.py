@@ -28,7 +28,10 @@ _OLD_HEADER = re.compile(
 _NPTS_DIGITS = 12
 _SECONDS = {"", "S", "SEC", "SECS", "SECOND", "SECONDS"}
 
-_UNITS_OF = re.compile(r"\bUNITS?\b\s*(?:OF\b|IN\b|[:=])?\s*(.*)$", re.I)
+# `... IN UNITS OF G`, `UNITS IN CM/S/S`, `UNITS: G` or `UNIT = GAL`: the word
+# UNIT alone is no statement of units ("Hospital Unit 2 basement" names a
+# station).
+_UNITS_OF = re.compile(r"\b(?:UNITS\s+(?:OF|IN)\b|UNITS?\s*[:=])\s*(.*)$", re.I)
 # Without the word UNITS, a unit is read only from a line that names the series,
 # so that a station name such as "Pacoima Dam (upper left abut)" is not taken
 # for one.
@@ -138,9 +141,12 @@ def _match_npts_dt(line: str, where: str) -> re.Match:
 
 
 def _acceleration_factor(header: list[str], name: str) -> float:
-    """The factor that takes the header's unit to m/s^2 (GRAVITY without one)."""
-    factor = GRAVITY
-    units_found = False
+    """The factor that takes the header's unit to m/s^2 (GRAVITY without one).
+
+    Every line that states a unit is read: two that state different units
+    (`UNITS: G`, then `ACCELERATION TIME SERIES (CM/S/S)`) are an error
+    naming both."""
+    stated = None  # (line number, unit, factor) of the first statement
     for k, line in enumerate(header):
         if _NOT_ACCELERATION.search(line):
             raise ValueError(
@@ -148,16 +154,24 @@ def _acceleration_factor(header: list[str], name: str) -> float:
                 f"displacement series ({line.strip()!r}): read_at2 reads "
                 "acceleration only"
             )
-        unit = None if units_found else _unit_text(line)
-        if unit is not None:
-            units_found = True
-            factor = _to_m_s2(unit)
-            if factor is None:
-                raise ValueError(
-                    f"{name!r}, line {k + 1}: unit {unit!r} is not recognised "
-                    "(read_at2 reads g, cm/s^2 (CM/S/S, GAL) or m/s^2 (M/S/S))"
-                )
-    return factor
+        unit = _unit_text(line)
+        if unit is None:
+            continue
+        factor = _to_m_s2(unit)
+        if factor is None:
+            raise ValueError(
+                f"{name!r}, line {k + 1}: unit {unit!r} is not recognised "
+                "(read_at2 reads g, cm/s^2 (CM/S/S, GAL) or m/s^2 (M/S/S))"
+            )
+        if stated is None:
+            stated = (k + 1, unit, factor)
+        elif factor != stated[2]:
+            raise ValueError(
+                f"{name!r}: the header states two units, {stated[1]!r} (line "
+                f"{stated[0]}) and {unit!r} (line {k + 1}): which one the "
+                "samples are in is unknown"
+            )
+    return GRAVITY if stated is None else stated[2]
 
 
 def _npts_and_dt(match: re.Match, where: str) -> tuple[int, float]:
@@ -251,13 +265,14 @@ def read_at2(path: str | os.PathLike) -> Record:
     Python's `float` takes: it reads `1_0` as 10).
 
     The units line of the header sets the scale of the samples, matched
-    case-insensitively: `... IN UNITS OF G`, `UNITS: ...`, or a unit in
-    parentheses or after `IN` on the line naming the series (e.g.
-    `ACCELERATION TIME SERIES (CM/S2)`). Recognised units are g (times
-    `GRAVITY` = 9.81 m/s^2), cm/s^2 (`CM/S/S`, `CM/SEC/SEC`, `CM/S2`,
-    `CM/S^2`, `GAL`; times 0.01) and m/s^2 (`M/S/S`, `M/S2`, `M/S^2`;
-    times 1). A header without a units line is taken to be in g, the PEER
-    convention.
+    case-insensitively: `... UNITS OF G`, `UNITS IN ...`, `UNITS: ...` (or
+    `UNIT = ...`), or a unit in parentheses or after `IN` on the line naming
+    the series (e.g. `ACCELERATION TIME SERIES (CM/S2)`). No other line
+    states a unit: the word UNIT alone, as in a station's name ("Hospital
+    Unit 2 basement"), does not. Recognised units are g (times `GRAVITY` =
+    9.81 m/s^2), cm/s^2 (`CM/S/S`, `CM/SEC/SEC`, `CM/S2`, `CM/S^2`, `GAL`;
+    times 0.01) and m/s^2 (`M/S/S`, `M/S2`, `M/S^2`; times 1). A header
+    without a units line is taken to be in g, the PEER convention.
 
     The record is labelled from the header and the file name: `name` is the
     header's second line (event, date, station, component), `azimuth` the
@@ -269,7 +284,8 @@ def read_at2(path: str | os.PathLike) -> Record:
     1-based line number, when: the path is a folder or does not exist; the
     file is a velocity or displacement series (a `.VT2` or `.DT2` suffix, or
     `VELOCITY` or `DISPLACEMENT` in the header), since `read_at2` reads
-    acceleration only; the unit is not one of the above; there is no
+    acceleration only; the unit is not one of the above, or two lines state
+    different units (both are named); there is no
     `NPTS`/`DT` line or it cannot be read; NPTS has too many digits to be a
     count; DT is not in seconds, not finite or out of its range; a value is
     not a finite number (the line and token are given); or the file holds

@@ -339,3 +339,67 @@ def test_dt_out_of_the_records_range_names_file_and_line(tmp_path, dt):
 def test_leading_zeros_of_npts_are_no_digits_too_many(tmp_path):
     rec = jr.io.read_at2(_write(tmp_path, f"NPTS= {'0' * 40}8, DT=   .0100 SEC,"))
     assert rec.samples.shape == (8,)
+
+
+# Which header lines state the samples' unit.
+UNIT_VALUES = [0.001, -0.002, 0.003, 0.004]
+TITLE = "PEER NGA STRONG MOTION DATABASE RECORD"
+
+
+def _at2(tmp_path, *header):
+    """An AT2 file of `UNIT_VALUES` whose header is `TITLE`, then `header`'s lines."""
+    path = tmp_path / "x.AT2"
+    lines = [TITLE, *header, "NPTS=     4, DT=   .0100 SEC,"]
+    lines.append("  ".join(f"{v: .7E}" for v in UNIT_VALUES))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    "station", ["Hospital Unit 2 basement", "Unit 4", "Power Plant Units 1-3"]
+)
+@pytest.mark.parametrize(
+    "units, factor",
+    [
+        (None, 9.81),
+        ("ACCELERATION TIME SERIES IN UNITS OF G", 9.81),
+        ("ACCELERATION TIME SERIES IN UNITS OF CM/S/S", 0.01),
+        ("UNITS: M/S/S", 1.0),
+    ],
+)
+def test_a_station_named_unit_states_no_unit(tmp_path, station, units, factor):
+    """The word UNIT in a station's name is no statement of units: the
+    samples are in the unit of the units line, or in g without one."""
+    header = [f"Test, 1/1/2000, {station}, 90"] + ([] if units is None else [units])
+    record = jr.io.read_at2(_at2(tmp_path, *header))
+    np.testing.assert_allclose(
+        np.asarray(record.samples), np.array(UNIT_VALUES) * factor, rtol=1e-15
+    )
+    assert record.name == f"Test, 1/1/2000, {station}, 90"
+
+
+@pytest.mark.parametrize(
+    "first, second, units",
+    [
+        ("Units: G", "ACCELERATION TIME SERIES (CM/S/S)", ("'G' (line 3)", "'CM/S/S'")),
+        ("ACCELERATION IN GAL", "UNITS = M/S^2", ("'GAL' (line 3)", "'M/S^2'")),
+    ],
+)
+def test_two_different_units_are_refused(tmp_path, first, second, units):
+    path = _at2(tmp_path, "Test, 1/1/2000, X, 90", first, second)
+    pattern = ".*".join(
+        re.escape(p) for p in (repr(str(path)), "two units", *units, "(line 4)")
+    )
+    with pytest.raises(ValueError, match=pattern):
+        jr.io.read_at2(path)
+
+
+def test_one_unit_stated_twice_is_read(tmp_path):
+    """Two statements of one unit (cm/s^2 as CM/S/S and as GAL) agree."""
+    path = _at2(
+        tmp_path, "Test, 1/1/2000, X, 90", "UNITS: CM/S/S", "ACCELERATION IN GAL"
+    )
+    record = jr.io.read_at2(path)
+    np.testing.assert_allclose(
+        np.asarray(record.samples), np.array(UNIT_VALUES) * 0.01, rtol=1e-15
+    )

@@ -364,3 +364,38 @@ def test_a_vertical_records_gravity_bound_is_its_least_g_eff():
     pairs = _bounds_against_samples(record, "gravity_bound", "gravity", np.min, 2)
     for exact, got in pairs:
         assert got == pytest.approx(exact, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "motion, message",
+    [
+        (
+            jr.near_fault_pulse("San Fernando PCD/SN"),
+            "`record` must be a Record.*MPPulse",
+        ),
+        (jr.SinePulse(amplitude=3.0, frequency=2.0), "`record` must be a Record"),
+        (
+            jr.Record.stack(
+                [jr.Record(np.zeros(3), DT, name=f"Pacoima Dam, {c}") for c in "V1"]
+            ),
+            "`record` must be one record, not a suite of 2",
+        ),
+    ],
+    ids=["pulse", "sine", "suite"],
+)
+def test_is_vertical_refuses_what_has_no_component(motion, message):
+    """A closed-form motion has no name to tell its component by, and a suite
+    has one per record: both are refused, naming what is taken."""
+    with pytest.raises(ValueError, match=message):
+        jr.records.is_vertical(motion)
+
+
+@pytest.mark.parametrize("index", [5, 2, -3, 1.0, True, np.array([0, 2])])
+def test_select_refuses_an_index_out_of_range(index):
+    record = jr.Record(np.arange(4.0), DT, name="a")
+    suite = jr.Record.stack([record, record])
+    what = "integers" if np.ndim(index) else "an integer"
+    message = rf"`index` must be {what} in \[-2, 2\), got "
+    with pytest.raises(ValueError, match=message):
+        suite.select(index)
+    assert suite.select(-2).name == "a" and suite.select(1).name == "a"

@@ -346,3 +346,55 @@ def test_load_refuses_corrupt_truncated_and_foreign_files(tmp_path):
     for path in (truncated, garbage, foreign, bad_meta, tmp_path / "missing.npz"):
         with pytest.raises(ValueError, match="not a behavior map"):
             jr.BehaviorMap.load(path)
+
+
+@pytest.fixture
+def small_map(tmp_path_factory) -> jr.BehaviorMap:
+    """A map read from a file in a folder of its own (`tmp_path` stays empty)."""
+    return jr.BehaviorMap.load(_saved_map(tmp_path_factory.mktemp("source")))
+
+
+@pytest.mark.parametrize("given", ["", "folder", "folder/", "folder.nc"])
+def test_save_refuses_an_empty_path_or_a_folder_and_leaves_no_file(
+    small_map, tmp_path, monkeypatch, given
+):
+    """An empty `path` or one naming a folder is a `ValueError` naming `path`,
+    raised before anything is written: no map, no temporary file."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "folder.nc").mkdir()
+    with pytest.raises(ValueError, match="`path`.*(empty|is a folder, not a file)"):
+        small_map.save(given)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["folder", "folder.nc"]
+
+
+@pytest.mark.parametrize(
+    "given, written",
+    [("m.NPZ", "m.NPZ"), ("m.Npz", "m.Npz"), ("m", "m.npz"), (".npz", ".npz")],
+)
+def test_save_and_load_agree_on_the_file_of_a_path(small_map, tmp_path, given, written):
+    """A `.npz` suffix in any case is written at that name, a name without a
+    suffix gets `.npz` appended, and `load` reads the map from the path
+    given to `save`; no temporary file is left."""
+    small_map.save(tmp_path / given)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [written]
+    back = jr.BehaviorMap.load(tmp_path / given)
+    np.testing.assert_array_equal(back.outcome, small_map.outcome)
+    assert back.motion == small_map.motion
+
+
+def test_save_at_an_upper_case_suffix_on_a_full_disk_leaves_nothing(
+    small_map, tmp_path, monkeypatch
+):
+    """NumPy writes the temporary file of `m.NPZ` under a name of its own
+    (".npz" appended); a write that fails midway leaves neither that file nor
+    a map."""
+
+    def half_then_full(file, **arrays):
+        Path(file).write_bytes(b"PK\x03\x04")  # the start of a zip file
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(np, "savez_compressed", half_then_full)
+    with pytest.raises(OSError, match=r"cannot write .*m\.NPZ: No space left"):
+        small_map.save(tmp_path / "m.NPZ")
+    assert list(tmp_path.iterdir()) == []
