@@ -219,8 +219,8 @@ def condition_slide(t, y, args: Args, **kwargs):
     friction again. Disarmed (1) once the block slid."""
     del kwargs
     margin = jnp.minimum(slide_margin(t, y, args), corner_margin(y, args))
-    near = GRAVITY * (args.sign * y[0] - args.block.alpha * (1.0 - CORNER_ROUNDING))
-    margin = jnp.where(args.theta_ref < args.block.alpha, margin, near)
+    back = GRAVITY * (args.sign * y[0] - args.block.alpha * (1.0 - CORNER_ROUNDING))
+    margin = jnp.where(args.theta_ref < args.block.alpha, margin, back)
     return jnp.where(args.slid, 1.0, margin)
 
 
