@@ -24,6 +24,10 @@ _PROGRAMS_LOCK = threading.Lock()
 _TRACING = threading.Lock()
 # Whether chunk loops compile for a first answer (`first_answer`).
 _FIRST_ANSWER = False
+# The most cells of a chunk on a base with a hysteretic state whose loop
+# compiles at level 0 for a first answer: its compile takes about 3.6 s less
+# on two cores, and its run under a record about 27 ms a cell more.
+HYSTERETIC_LEVEL_0_CELLS = 64
 
 
 @contextlib.contextmanager
@@ -32,12 +36,14 @@ def first_answer():
     whose compile is most of the wait, as the CLI's (the Python API keeps the
     defaults).
 
-    On a base without a hysteretic state they compile on the CPU at XLA's
-    backend optimization level 0: in about half the time, to run 3-4 times
-    as long (the docs' performance page, "Start-up"). A friction pendulum's
-    loop runs long enough that level 0 would cost more than it saves; it
-    keeps XLA's level, with the Newton iterations of its events in a loop
-    rather than unrolled (`_layout.Loop.newton_unrolled`)."""
+    They compile on the CPU at XLA's backend optimization level 0: in about
+    half the time, to run 2.5-4 times as long (the docs' performance page,
+    "Start-up"). On a base with a hysteretic state (a friction pendulum),
+    whose analyses run long, only a chunk of at most
+    `HYSTERETIC_LEVEL_0_CELLS` cells does (its run loses less than the
+    compile saves); a larger one keeps XLA's level. Either way its events'
+    Newton iterations are in a loop rather than unrolled
+    (`_layout.Loop.newton_unrolled`)."""
     global _FIRST_ANSWER
     before, _FIRST_ANSWER = _FIRST_ANSWER, True
     try:
@@ -64,7 +70,8 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
     )
     task = jax.tree_util.tree_unflatten(treedef, specs)
     platform = next(iter(leaves[0].devices())).platform
-    options = compiler_options(task.base, task.layout, _FIRST_ANSWER, platform)
+    cells = task.slenderness.shape[0]
+    options = compiler_options(task.base, task.layout, _FIRST_ANSWER, platform, cells)
     # A hysteretic base keeps XLA's level, and its Newton in a loop compiles faster.
     if _FIRST_ANSWER and task.base.hysteretic_state:
         loop = loop._replace(newton_unrolled=False)
@@ -105,10 +112,11 @@ def compiler_options(
     layout: MotionLayout,
     first_answer: bool = False,
     platform: str | None = None,
+    cells: int | None = None,
 ) -> dict:
-    """XLA's options for a chunk loop on `base` under a motion laid out as
-    `layout` (with `first_answer`: see `first_answer`) on `platform`
-    (default: JAX's default backend).
+    """XLA's options for a chunk loop of `cells` cells (None: any number) on
+    `base` under a motion laid out as `layout` (with `first_answer`: see
+    `first_answer`) on `platform` (default: JAX's default backend).
 
     On the CPU, a loop under a closed-form motion on a base without a
     hysteretic state compiles with XLA's loop emitters instead of its fusion
@@ -121,7 +129,8 @@ def compiler_options(
     if platform != "cpu":
         return {}
     options = {}
-    if first_answer and not base.hysteretic_state:
+    small = cells is not None and cells <= HYSTERETIC_LEVEL_0_CELLS
+    if first_answer and (small or not base.hysteretic_state):
         options["xla_backend_optimization_level"] = 0
     if layout is MotionLayout.PER_CELL and not base.hysteretic_state:
         options["xla_cpu_use_fusion_emitters"] = False

@@ -148,10 +148,11 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     tmp_path, monkeypatch
 ):
     """Within `first_answer`, a fixed base's loop compiles at XLA's backend
-    optimization level 0 (a friction pendulum's keeps XLA's level, its
-    events' Newton iterations not unrolled): another program than the
-    default, giving the same map (but for the last bits at level 0).
-    `jaxrock map` compiles a small map so; a larger one keeps the default."""
+    optimization level 0 (a friction pendulum's too where its chunk is small,
+    else it keeps XLA's level; its events' Newton iterations not unrolled):
+    another program than the default, giving the same map (but for the last
+    bits at level 0). `jaxrock map` compiles a small map so; a larger one
+    keeps the default."""
     # The programs this test makes, whatever other tests of this process made.
     monkeypatch.setattr(_programs, "_PROGRAMS", {})
     pulse, layout = jr.near_fault_pulse("San Fernando PCD/SN"), MotionLayout.PER_CELL
@@ -160,6 +161,10 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     assert _programs.compiler_options(jr.FixedBase(), layout, True)[level] == 0
     fps = jr.FrictionPendulum(0.11, 2.24, 0.5)
     assert level not in _programs.compiler_options(fps, layout, True)
+    small, large = _programs.HYSTERETIC_LEVEL_0_CELLS, 2 * 8192
+    assert _programs.compiler_options(fps, layout, True, None, small)[level] == 0
+    assert level not in _programs.compiler_options(fps, layout, True, None, large)
+    assert level not in _programs.compiler_options(fps, layout, False, None, small)
 
     lam, size = np.linspace(2.0, 6.0, 9), np.linspace(0.3, 3.0, 7)
     default = jr.behavior_map(lam, size, jr.FixedBase(), pulse, progress=False)
@@ -173,17 +178,18 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     np.testing.assert_array_equal(quick.impacts, default.impacts)
     np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
 
-    # A friction pendulum's loop keeps XLA's level, its Newton iterations in
-    # a loop: the same map to the bit.
+    # A friction pendulum's small map: level 0, its Newton iterations in a
+    # loop; the same map but for the last bits.
     lam, size = np.linspace(2.0, 6.0, 3), np.array([0.5, 2.0])
     default = jr.behavior_map(lam, size, fps, pulse, progress=False)
     before = set(_programs._PROGRAMS)
     with _programs.first_answer():
         quick = jr.behavior_map(lam, size, fps, pulse, progress=False)
     (key,) = set(_programs._PROGRAMS) - before
-    assert not key[2].newton_unrolled and level not in key[-1]
-    for k in jr._maps._FIELDS:
-        np.testing.assert_array_equal(getattr(quick, k), getattr(default, k), k)
+    assert not key[2].newton_unrolled and f'"{level}": 0' in key[-1]
+    np.testing.assert_array_equal(quick.outcome, default.outcome)
+    np.testing.assert_array_equal(quick.impacts, default.impacts)
+    np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
 
     from jaxrock import cli
 
