@@ -45,7 +45,12 @@ from ._model import (
     with_start_conditions,
 )
 from ._scene import fixed_base, has_vertical, rest_jumps, rocking_reads_all
-from ._signal import AbstractAcceleration, accelerations_at, gravities_at
+from ._signal import (
+    AbstractAcceleration,
+    StillGround,
+    accelerations_at,
+    gravities_at,
+)
 
 # Newton iterations of an event's root find (kept in a bracket, from the secant
 # guess). 8 reproduce the paper's maps to 3e-14 against 14; 5 are too few (near
@@ -563,22 +568,6 @@ def _batch_size(lanes: int, base: AbstractIsolator) -> int:
     return min(_BATCH_HYSTERETIC if base.hysteretic_state else _BATCH, lanes)
 
 
-class _Still(AbstractAcceleration):
-    """No horizontal ground motion: what the root find of rocking lanes
-    reads of it; g_eff that of `vertical` (the lanes' motion under vertical
-    ground motion, whose free flight the root find locates), else g."""
-
-    vertical: AbstractAcceleration | None = None
-
-    def acceleration(self, t):
-        return jnp.zeros_like(t)
-
-    def gravity(self, t):
-        if self.vertical is None:
-            return GRAVITY
-        return self.vertical.gravity(t)
-
-
 class _ForceFree(AbstractIsolator):
     """An isolated base without its force: what the root find of rocking lanes
     reads of it (their conditions are the block's angles, the base's u and
@@ -629,7 +618,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes, unrolled):
       base's free-vibration bounds, armed in translation only) too: a batch in
       which every lane rocks evaluates neither;
     - but a block's slide condition (`rocking_reads_all`) reads both, and
-      the free flight of a vertical motion reads g_eff (`_Still` keeps it).
+      the free flight of a vertical motion reads g_eff (`StillGround` keeps it).
     """
 
     def locate(sub, motion, axes, unfired=()):
@@ -644,7 +633,11 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes, unrolled):
         return locate(sub, motion, motion_axes)
     if fixed_base(sub.args.base):
         vertical = has_vertical(motion)
-        still = (_Still(motion), _Still(motion_axes)) if vertical else (_Still(), None)
+        still = (
+            (StillGround(motion), StillGround(motion_axes))
+            if vertical
+            else (StillGround(), None)
+        )
         return jax.lax.cond(
             translating,
             lambda: locate(sub, motion, motion_axes),

@@ -38,7 +38,7 @@ import enum
 from ._block import Block
 from ._isolators import AbstractIsolator, FixedBase
 from ._record import Record
-from ._signal import AbstractSignal, ClosedFormSignal, RecordSignal
+from ._signal import AbstractSignal, ClosedFormSignal, RecordSignal, StillGround
 from ._vertical import WithVertical
 
 
@@ -79,7 +79,10 @@ def rocking_reads_all(block: Block) -> bool:
 
 def has_vertical(signal: AbstractSignal) -> bool:
     """The ground moves vertically too (static): a closed form `WithVertical`
-    or a record with `vertical` samples."""
+    or a record with `vertical` samples (also as the `StillGround` of a map's
+    rocking lanes, whose free flight is an event)."""
+    if isinstance(signal, StillGround):
+        return signal.vertical is not None and has_vertical(signal.vertical)
     if isinstance(signal, ClosedFormSignal):
         return isinstance(signal.motion, WithVertical)
     if isinstance(signal, RecordSignal):

@@ -50,6 +50,24 @@ class AbstractAcceleration(eqx.Module):
         return GRAVITY
 
 
+class StillGround(AbstractAcceleration):
+    """No horizontal ground motion: what the root find of a map's rocking
+    lanes on a fixed base reads of the ground (only their uplift conditions,
+    in translation, read it); g_eff that of `vertical` (the lanes' signal
+    under vertical ground motion, whose free flight the root find locates),
+    else g."""
+
+    vertical: AbstractAcceleration | None = None
+
+    def acceleration(self, t):
+        return jnp.zeros_like(t)
+
+    def gravity(self, t):
+        if self.vertical is None:
+            return GRAVITY
+        return self.vertical.gravity(t)
+
+
 class AbstractSignal(AbstractAcceleration):
     """A ground motion as the engines read it (module docstring).
 

