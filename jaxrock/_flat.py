@@ -394,9 +394,13 @@ def _locate(a: _Attempt, opts, unfired=(), unrolled=True):
     (compiling); with `unrolled` they are unrolled on a base with a
     hysteretic state (`_layout.Loop.newton_unrolled`).
     """
+    # The conditions of the attempt, one per entry of `fired` (the batch's
+    # stand-ins for the ground and the base keep the same conditions).
     conditions = jax.tree_util.tree_leaves(
         event_conditions(a.args.block, a.args.base, a.args.motion)
     )
+    if len(conditions) != len(a.fired):
+        raise AssertionError(f"{len(conditions)} conditions, {len(a.fired)} fired")
     evaluate = _dense_in_s(opts.solver, a)
     h = a.t1 - a.t0
 
