@@ -72,7 +72,7 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
     platform = next(iter(leaves[0].devices())).platform
     cells = task.slenderness.shape[0]
     options = compiler_options(task.base, task.layout, _FIRST_ANSWER, platform, cells)
-    # A hysteretic base keeps XLA's level, and its Newton in a loop compiles faster.
+    # A hysteretic base's Newton iterations in a loop compile faster.
     if _FIRST_ANSWER and task.base.hysteretic_state:
         loop = loop._replace(newton_unrolled=False)
     key = (treedef, specs, loop, json.dumps(options))
