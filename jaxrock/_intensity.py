@@ -192,7 +192,9 @@ def intensity_measure(
       (m/s^2; `response_spectrum`), e.g. "sa:1.0".
     - "arias": pi / (2 g) times the integral of x_g''^2 (m/s); "cav": the
       integral of |x_g''| (m/s); "d5_95": the time from 5% to 95% of the
-      Arias intensity (s; NaN for a record of zeros).
+      Arias intensity (s; NaN for a record of zeros), each crossing
+      interpolated linearly between the samples of the cumulative Arias
+      intensity (within one sample interval of the exact crossing).
     - "tp": the pulse period T_p = 1 / f_p (s): a pulse's own, a record's
       from the Mavroeidis-Papageorgiou pulse fitted to its velocity
       (`fit_pulse`: seconds a record; a scale factor does not change it).
