@@ -312,11 +312,12 @@ _ROTD_STEP = 1.0
 
 
 @jax.jit
-def _rotated_peaks(rows, coefficients, cos, sin):
+def _rotated_peaks(starts, rows, coefficients, cos, sin):
     """max |u1 cos(a) + u2 sin(a)| over the samples of the two rows (2, n),
-    for each period and azimuth a (P, A): the oscillator is linear, so the
-    response to the rotated motion is the same rotation of the components'
-    responses."""
+    x_g'' linear from `starts` (just after each sample) to `rows` (at the
+    next), for each period and azimuth a (P, A): the oscillator is linear,
+    so the response to the rotated motion is the same rotation of the
+    components' responses."""
     a11, a12, a21, a22, b0u, b1u, b0v, b1v = coefficients
     zero = jnp.zeros((2,) + a11.shape)
 
@@ -331,7 +332,7 @@ def _rotated_peaks(rows, coefficients, cos, sin):
         return (u, v, jnp.maximum(peak, jnp.abs(rotated))), None
 
     start = (zero, zero, jnp.zeros(a11.shape + cos.shape))
-    (_, _, peak), _ = jax.lax.scan(step, start, (rows[:, :-1].T, rows[:, 1:].T))
+    (_, _, peak), _ = jax.lax.scan(step, start, (starts[:, :-1].T, rows[:, 1:].T))
     return peak
 
 
@@ -430,9 +431,13 @@ def rotd50(
         components.append(np.asarray(row)[: int(samples.length[0])])
     n = max(c.size for c in components)
     rows = np.stack([np.pad(c, (0, n - c.size)) for c in components])
+    # The shorter component is zero just after its last sample (a step).
+    starts = rows.copy()
+    starts[[0, 1], [c.size - 1 for c in components]] = 0.0
     azimuth = np.radians(np.arange(0.0, 180.0, _ROTD_STEP))
     coefficients = oscillator_coefficients(periods, damping, float(first.dt))
     peaks = _rotated_peaks(
+        jnp.asarray(starts),
         jnp.asarray(rows),
         jnp.asarray(coefficients),
         jnp.asarray(np.cos(azimuth)),

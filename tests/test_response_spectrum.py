@@ -180,6 +180,31 @@ def test_rotd50_is_the_median_over_rotated_records(pacoima_pair):
     )
 
 
+def test_rotd50_of_a_shorter_component_steps_to_zero_after_it():
+    """A component shorter than the other is zero just after its last
+    sample (a step, as a `Record` is): against `lsim` of each component,
+    the shorter one run to its end and on from its state there."""
+    dt, period, zeta = 0.01, 0.5, 0.05
+    t = dt * np.arange(300)
+    a1 = 0.2 * np.sin(2.0 * np.pi * 1.3 * t)
+    a2 = np.linspace(0.0, 3.0, 200)  # released at 3 m/s^2: its peak comes after
+    w = 2.0 * np.pi / period
+    system = signal.StateSpace(
+        [[0.0, 1.0], [-w * w, -2.0 * zeta * w]], [[0.0], [-1.0]], [[1.0, 0.0]], 0.0
+    )
+    _, u1, _ = signal.lsim(system, a1, t)
+    _, during, state = signal.lsim(system, a2, t[:200])
+    _, after, _ = signal.lsim(system, np.zeros(101), t[199:] - t[199], X0=state[-1])
+    u2 = np.concatenate([during, after[1:]])
+    azimuth = np.radians(np.arange(180.0))
+    peaks = np.abs(np.cos(azimuth)[:, None] * u1 + np.sin(azimuth)[:, None] * u2)
+    want = np.median(peaks.max(axis=1))
+    first = jr.Record(a1, dt, azimuth=0.0)
+    second = jr.Record(a2, dt, azimuth=90.0)
+    got = jr.rotd50(first, second, period, damping=zeta)
+    assert float(got.displacement[0]) == pytest.approx(want, rel=1e-9)
+
+
 def test_rotd50_takes_two_perpendicular_horizontal_components():
     """RotD50 rotates two perpendicular horizontal components: a vertical one
     (by its name) or two whose azimuths are not 90 degrees apart (within 1)
