@@ -372,7 +372,7 @@ def rotd50(
     (Boore 2010). The oscillator is linear, so the response at each azimuth
     is the same rotation of the two components' exact responses (Nigam &
     Jennings, as `response_spectrum`), all in one compiled call. A component
-    shorter than the other is at rest after its last sample.
+    shorter than the other is zero just after its last sample.
 
     Args:
         first, second: the two horizontal components (`Record`s, not
