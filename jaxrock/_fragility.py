@@ -719,12 +719,7 @@ def fragility(
         >>> frag = jr.fragility(4.0, 1.0, jr.FixedBase(), pulse,
         ...                     scales=[0.2, 0.5, 1.0, 1.5])  # doctest: +SKIP
     """
-    parse_measure(measure)
-    check_base_and_motion(base, motions)
-    unbatched("base", base, "fragility")
-    for name, x in (("slenderness", slenderness), ("size", size)):
-        positive(name, one_real_number(name, x, "finite and > 0"))
-    states, parsed = check_damage_states(damage_states, slenderness, base)
+    states, parsed = _checked(measure, base, motions, slenderness, size, damage_states)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
     motions, scales, levels = _scaled(
@@ -747,6 +742,18 @@ def fragility(
         motion_names=names,
         damage_states=states,
     )
+
+
+def _checked(measure, base, motions, slenderness, size, damage_states):
+    """`fragility`'s arguments checked before any analysis (`ValueError`
+    naming the one at fault); returns `check_damage_states`'s (states,
+    parsed)."""
+    parse_measure(measure)
+    check_base_and_motion(base, motions)
+    unbatched("base", base, "fragility")
+    for name, x in (("slenderness", slenderness), ("size", size)):
+        positive(name, one_real_number(name, x, "finite and > 0"))
+    return check_damage_states(damage_states, slenderness, base)
 
 
 # How each measure grows with a record's amplitude factor f: as f^power (None:
