@@ -18,17 +18,23 @@ def as_float(x):
     return jnp.asarray(x, dtype=float)
 
 
-def real_number(name: str, x):
-    """`x` as a float array if it is real-valued (ints and floats, scalar or
-    array, concrete or traced); else `ValueError` naming `name`. Strings,
-    None, booleans and complex numbers are refused, not coerced."""
+def is_real(x) -> bool:
+    """Whether `x` is real-valued: ints and floats, scalar or array, concrete
+    or traced (not a string, None, a bool or a complex number)."""
     kind = getattr(getattr(x, "dtype", None), "kind", None)
     if kind is None and not isinstance(x, (str, bytes, bool)) and x is not None:
         try:
             kind = np.asarray(x).dtype.kind
         except (TypeError, ValueError):
             kind = None
-    if kind not in ("f", "i", "u"):
+    return kind in ("f", "i", "u")
+
+
+def real_number(name: str, x):
+    """`x` as a float array if it is real-valued (`is_real`); else
+    `ValueError` naming `name`. Strings, None, booleans and complex numbers
+    are refused, not coerced."""
+    if not is_real(x):
         raise ValueError(
             f"`{name}` must be a real number (float or int), got {x!r} "
             f"({type(x).__name__})"
@@ -154,13 +160,7 @@ def scale_factors(factor, name: str = "factor") -> np.ndarray:
     """Scale factors as an array of real numbers, each finite and > 0
     (`ValueError` naming `name` else: a string, a bool or None is refused,
     not converted)."""
-    kind = None
-    if not isinstance(factor, (str, bytes, bool)) and factor is not None:
-        try:
-            kind = np.asarray(factor).dtype.kind
-        except (TypeError, ValueError):
-            pass
-    if kind not in ("f", "i", "u"):
+    if not is_real(factor):
         raise ValueError(f"`{name}` must be finite and > 0, got {factor!r}")
     factor = np.asarray(factor, dtype=float)
     if factor.size == 0 or not np.all(np.isfinite(factor) & (factor > 0)):
