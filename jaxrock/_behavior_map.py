@@ -4,7 +4,6 @@ through xarray, and NumPy's .npz)."""
 import json
 import os
 import zipfile
-from pathlib import Path
 
 import equinox as eqx
 import numpy as np
@@ -340,7 +339,10 @@ class BehaviorMap(eqx.Module):
         meta = {k: None if v != v else v for k, v in meta.items()}
         arrays = {k: getattr(self, k) for k in ("slenderness", "size") + _FIELDS}
         metadata = json.dumps(meta, allow_nan=False)
-        atomic_write(path, lambda tmp: _savez(tmp, metadata, arrays))
+        atomic_write(
+            path,
+            lambda tmp: np.savez_compressed(tmp, metadata=np.array(metadata), **arrays),
+        )
 
     @classmethod
     def load(cls, path) -> "BehaviorMap":
@@ -417,19 +419,6 @@ def _file(path, kind: str) -> str:
     if name.endswith(("/", os.sep)) or os.path.isdir(name) or os.path.isdir(file):
         raise ValueError(f"`path` {name!r} is a folder, not a file")
     return file
-
-
-def _savez(tmp: Path, metadata: str, arrays: dict) -> None:
-    """Write a map's .npz file at `tmp`. NumPy appends ".npz" to a name that
-    does not end in it (a temporary name of `map.NPZ`): the file is written
-    at that name and moved to `tmp`, or removed if writing fails."""
-    named = tmp if tmp.name.endswith(".npz") else tmp.with_name(f"{tmp.name}.npz")
-    try:
-        np.savez_compressed(named, metadata=np.array(metadata), **arrays)
-        os.replace(named, tmp)
-    except BaseException:
-        named.unlink(missing_ok=True)
-        raise
 
 
 def _metadata(meta: dict) -> dict:

@@ -13,10 +13,14 @@ from pathlib import Path
 
 
 def temporary(path: Path, tag: str = "tmp") -> Path:
-    """A name beside `path` for this process and thread, ending in `path`'s
-    suffix (NumPy and matplotlib read the format from it)."""
+    """A name beside `path` for this process and thread, ending in the
+    suffix of `path`'s name in lower case (".npz" of "m.NPZ" and of ".npz"
+    alike): NumPy and matplotlib read the format from it, and NumPy appends
+    ".npz" to a name that does not end in it."""
     owner = f"{os.getpid()}-{threading.get_ident()}"
-    return path.with_name(f"{path.stem}.{owner}.{tag}{path.suffix}")
+    _, dot, ext = path.name.rpartition(".")
+    suffix = f".{ext.lower()}" if dot else ""
+    return path.with_name(f"{path.name}.{owner}.{tag}{suffix}")
 
 
 def atomic_write(path, write) -> None:
