@@ -726,6 +726,14 @@ def fragility(
         motions, scales, levels, measure, slenderness, size
     )
     im = _moving_measure(motions, measure, slenderness, size)
+    if levels is not None:
+        # Each stripe's records are scaled to its level: their measures equal
+        # it but for rounding (1 ulp), which must not order the analyses of
+        # one level (ties of a stripe, its binomial term).
+        im = np.broadcast_to(
+            levels.reshape((-1,) + (1,) * (len(motions.batch_shape) - 1)),
+            motions.batch_shape,
+        ).reshape(-1)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     return Fragility(
         **_fitted(bm, im, parsed),

@@ -343,3 +343,34 @@ def test_a_bootstrap_band_over_records_holds_the_fit():
     np.testing.assert_array_equal(again.lower, band.lower)
     with pytest.raises(ValueError, match="level"):
         frag.confidence_band(level=1.5)
+
+
+def test_a_stripe_s_ties_are_not_broken_by_rounding():
+    """The measures of a stripe's records, each scaled to the level, are
+    its level: 1 ulp of rounding in own * (level / own) must not order them.
+    Two records at PGV 0.01 (neither rocks) and 0.2 (one rocks): the stripes
+    are separated, a step at 0.2 as `fit_lognormal` of the counts gives, not
+    a fit with beta > 0."""
+    dt = 0.01
+    t = dt * np.arange(300)
+    window = np.sin(np.pi * t / t[-1])
+    # 1.1256... makes record A's PGV at 0.2 come out 1 ulp below 0.2.
+    fast = jr.Record(1.1256281407035176 * (np.sin(2 * np.pi * 5 * t) * window), dt)
+    slow = jr.Record(np.sin(2 * np.pi * 0.5 * t) * window, dt)
+    levels = np.array([0.01, 0.2])
+    frag = jr.fragility(
+        4.0,
+        1.0,
+        jr.FixedBase(),
+        jr.Record.stack([fast, slow]),
+        levels=levels,
+        measure="pgv",
+    )
+    np.testing.assert_array_equal(frag.im, np.repeat(levels, 2))
+    assert frag.rocked.tolist() == [False, False, True, False]
+    lv, k, n = frag.stripes("rocking")
+    assert (
+        (frag.median_rocking, frag.beta_rocking)
+        == jr.fit_lognormal(lv, k, trials=n)
+        == (0.2, 0.0)
+    )
