@@ -15,7 +15,7 @@ from ._intensity import intensity_measure, measure_attrs, parse_measure
 from ._isolators import AbstractIsolator, FixedBase
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import grid_axis, one_real_number, positive, unbatched
+from ._misc import grid_axis, is_count, one_real_number, positive, unbatched
 from ._model import check_base_and_motion
 from ._record import Record
 from ._results import Outcome, Status
@@ -169,6 +169,8 @@ def _fit_counts(log_im, count, total):
 # this many iterations.
 _NEWTON_TOLERANCE = 1e-13
 _NEWTON_ITERATIONS = 100
+# The relative rounding of a log-likelihood, a sum of float64 terms.
+_ROUNDING = 1e-13
 
 
 def _log_likelihood(p, x, k, n):
@@ -180,7 +182,7 @@ def _log_likelihood(p, x, k, n):
 @jax.jit
 def _newton(x, k, n):
     """(c, s) maximising `_log_likelihood` (concave): Newton from (0, 1),
-    halving a step while the log-likelihood falls."""
+    halving a step while the log-likelihood falls by more than its rounding."""
 
     def value(p):
         return _log_likelihood(p, x, k, n)
@@ -191,8 +193,13 @@ def _newton(x, k, n):
         step = -jnp.linalg.solve(jax.hessian(value)(p), g)
         now = value(p)
 
-        def worse(t):  # the step t falls (a NaN counts as a fall)
-            return ~(value(p + t * step) >= now) & (t > 1e-10)
+        # A step that falls by more than the value's rounding (a NaN counts
+        # as a fall) is halved: near the maximum the value moves by less
+        # than its rounding, and Newton's full steps converge.
+        floor = now - _ROUNDING * jnp.abs(now)
+
+        def worse(t):
+            return ~(value(p + t * step) >= floor) & (t > 1e-10)
 
         t = jax.lax.while_loop(worse, lambda t: 0.5 * t, 1.0)
         return p + t * step, jnp.max(jnp.abs(t * step)), i + 1
@@ -477,22 +484,27 @@ class Fragility(eqx.Module):
         (every analysis or none reaching `which`) are left out
         (`ConfidenceBand.fitted` counts the others). Reproducible for a `seed`.
         """
-        if not (0 < level < 1) or int(samples) < 2:
+        if not (0 < level < 1) or not is_count(samples) or samples < 2:
             raise ValueError(
-                f"`level` must be in (0, 1) and `samples` >= 2, got {level!r} "
-                f"and {samples!r}"
+                f"`level` must be in (0, 1) and `samples` an integer >= 2, got "
+                f"{level!r} and {samples!r}"
             )
         reached = self._reached(which)
         ok = self._counted(which)
         members = self.motion_index
         count = int(members.max()) + 1
+        if count < 2:  # every resample would draw it: a band of no width
+            raise ValueError(
+                "a bootstrap over the motions needs at least 2 motions (a suite "
+                "of records), this fragility has 1"
+            )
         if im is None:
             im = np.geomspace(self.im.min(), self.im.max(), 200)
         im = _intensities(im)
         log_im = np.log(self.im)
         rng = np.random.default_rng(seed)
         fits = []
-        for _ in range(int(samples)):
+        for _ in range(samples):
             drawn = np.bincount(rng.integers(0, count, count), minlength=count)
             weight = (drawn[members] * ok).astype(float)
             fits.append(_fit_counts(log_im, weight * reached, weight))

@@ -1,12 +1,14 @@
 """Intensity measures of ground motions: peaks, Sa(T), Arias intensity, CAV,
 significant duration and the dimensionless measures of rocking blocks."""
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._ground import AbstractGroundMotion, MPPulse, SinePulse
-from ._misc import GRAVITY, positive
+from ._misc import GRAVITY, flag, positive
 from ._record import Record
 from ._response_spectrum import (
     check_periods,
@@ -30,6 +32,8 @@ MEASURES = (
     "pgv_ratio",
     "frequency_ratio",
 )
+# Sa's period in "sa:T": a decimal number, as "1", "0.75", ".5" or "2e-1".
+_PERIOD = re.compile(r"(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 # Those of a block (the block's slenderness and size enter them).
 BLOCK_MEASURES = ("pga_ratio", "pgv_ratio", "frequency_ratio")
 # Each measure's meaning and unit (Sa's from `measure_attrs`).
@@ -61,11 +65,10 @@ def parse_measure(measure) -> tuple[str, float | None]:
     if not isinstance(measure, str):
         raise ValueError(f"{allowed}, got {measure!r}")
     if measure.startswith("sa:"):
-        try:
-            period = float(measure[3:])
-        except ValueError:
-            raise ValueError(f"{allowed}, got {measure!r}") from None
-        if not period_in_range(period):
+        # A decimal number only (`float` also reads "1_0", " 1" and "inf").
+        if not _PERIOD.fullmatch(measure[3:]) or not period_in_range(
+            period := float(measure[3:])
+        ):
             raise ValueError(f"{allowed}, got {measure!r}")
         return "sa", period
     if measure not in _ATTRS:
@@ -234,6 +237,7 @@ def intensity_measure(
     if isinstance(motion, WithVertical):  # the measures of its horizontal part
         motion = motion.horizontal
     _check_inputs(motion, name, measure, slenderness, size)
+    flag("baseline", baseline)
     shape = tuple(motion.batch_shape)
     if name == "sa":
         spectrum = response_spectrum(motion, check_periods(period), SA_DAMPING)

@@ -42,6 +42,14 @@ def real_number(name: str, x):
     return as_float(x)
 
 
+def flag(name: str, x) -> bool:
+    """`x` if it is True or False; else `ValueError` naming `name` (a
+    string such as "no" would count as true)."""
+    if not isinstance(x, (bool, np.bool_)):
+        raise ValueError(f"`{name}` must be True or False, got {x!r}")
+    return bool(x)
+
+
 def one_real_number(name: str, x, allowed: str):
     """`x` as a 0-d float array if it is one real number (concrete or traced);
     else `ValueError` naming `name` and its range, `allowed`."""
@@ -229,6 +237,8 @@ def check(name: str, x, ok, allowed: str) -> None:
     value = _concrete(x)
     if value is None:
         return
+    if not is_real(value):  # a bool, a string, None: not a number to compare
+        raise ValueError(f"`{name}` must be {allowed}, got {x!r}")
     try:
         good = np.asarray(ok(value))
     except jax.errors.TracerArrayConversionError:  # `ok` reads a traced parameter

@@ -34,7 +34,7 @@ from ._events import EVENT_ATOL, EVENT_RTOL, BracketedNewton
 from ._free import free_rocking, free_rocking_ready
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import check, one_real_number
+from ._misc import check, flag, one_real_number
 from ._model import (
     Carry,
     check_base_and_motion,
@@ -560,9 +560,7 @@ def simulate(
         solver=solver,
     )
     motion = motion.unlabeled()  # labels are static: they would recompile
-    if not isinstance(history, (bool, np.bool_)):
-        raise ValueError(f"`history` must be True or False, got {history!r}")
-    if not history:
+    if not flag("history", history):
         if history_step is not None:
             raise ValueError("`history_step` is read only with `history=True`")
         return _run_jit(block, base, motion, duration, opts)

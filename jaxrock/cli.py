@@ -70,34 +70,17 @@ def _wrap(text: str) -> str:
     )
 
 
-_MEASURES = (
-    "pga",
-    "pgv",
-    "pgd",
-    "arias",
-    "cav",
-    "d5_95",
-    "tp",
-    "pga_ratio",
-    "pgv_ratio",
-    "frequency_ratio",
-)
-
-
 def _measure(text: str) -> str:
-    """An intensity measure's name, or sa:T with T > 0 (s)."""
-    if text in _MEASURES:
-        return text
-    if text.startswith("sa:"):
-        try:
-            period = float(text[3:])
-        except ValueError:
-            period = float("nan")
-        if period > 0 and period < float("inf"):
-            return text
-    raise argparse.ArgumentTypeError(
-        f"must be one of {', '.join(_MEASURES)} or sa:T (T in s, > 0), got {text!r}"
-    )
+    """An intensity measure's name, or sa:T (`intensity_measure`'s)."""
+    from ._intensity import parse_measure
+
+    try:
+        parse_measure(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(
+            str(e).replace("`measure` must be", "must be")
+        ) from None
+    return text
 
 
 def _damage_state(text: str) -> str:

@@ -734,3 +734,11 @@ def test_simulate_on_a_gpu_machine_computes_on_its_cpu(tmp_path, monkeypatch):
     )
     assert main([*argv, "--out", str(tmp_path / "b.png")]) == 0
     assert seen == [None, cpus[0]]
+
+
+@pytest.mark.parametrize("measure", ["sa:0", "sa:1_0", "sa:200", "PGA"])
+def test_cli_measure_is_intensity_measure_s(measure, no_computation, capsys):
+    """--measure takes what `intensity_measure` takes, with its range of T."""
+    message = _refused(["fragility", "--measure", measure], capsys)
+    assert "argument --measure: must be one of pga, pgv" in message
+    assert "(Sa at period T s, in [0.001, 100])" in message

@@ -341,6 +341,9 @@ def test_a_bootstrap_band_over_records_holds_the_fit():
     assert band.median[0] < frag.median_overturning < band.median[1]
     again = frag.confidence_band(samples=200, level=0.9, seed=1)
     np.testing.assert_array_equal(again.lower, band.lower)
+    for samples in ("10", 2.5, True):
+        with pytest.raises(ValueError, match="`samples` an integer >= 2"):
+            frag.confidence_band(samples=samples)
     with pytest.raises(ValueError, match="level"):
         frag.confidence_band(level=1.5)
 
@@ -374,3 +377,15 @@ def test_a_stripe_s_ties_are_not_broken_by_rounding():
         == jr.fit_lognormal(lv, k, trials=n)
         == (0.2, 0.0)
     )
+
+
+def test_a_bootstrap_over_one_motion_is_refused():
+    """One pulse at several scales is one motion: every resample draws it,
+    and a band of no width is refused with the reason."""
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    frag = jr.fragility(
+        4.0, 1.0, jr.FixedBase(), pulse, scales=np.geomspace(0.2, 2.0, 6)
+    )
+    assert frag.rocked.any() and not frag.rocked.all()
+    with pytest.raises(ValueError, match="at least 2 motions"):
+        frag.confidence_band("rocking")

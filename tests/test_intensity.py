@@ -107,6 +107,11 @@ def test_fragility_by_spectral_acceleration():
     [
         ("sa:0", {}, "`measure` must be one of pga, "),
         ("sa:x", {}, "or 'sa:T'"),
+        ("sa:1_0", {}, "or 'sa:T'"),
+        ("sa: 1", {}, "or 'sa:T'"),
+        ("sa:inf", {}, "or 'sa:T'"),
+        ("pga", {"baseline": "no"}, "`baseline` must be True or False"),
+        ("pga_ratio", {"slenderness": True}, "`slenderness` must be finite and > 0"),
         ("PGA", {}, "`measure` must be one of"),
         ("pgv_ratio", {"slenderness": 4.0}, "needs the block's `slenderness` and"),
         ("pga_ratio", {}, "needs the block's `slenderness`"),
