@@ -1,6 +1,7 @@
 """A map's grid: its cells and their pilots, the inputs of chosen cells, and
 what identifies its chunks in a store."""
 
+import abc
 import hashlib
 import json
 import os
@@ -21,6 +22,54 @@ def _leaf_digest(module) -> str:
     for x in jax.tree_util.tree_leaves(module):
         h.update(np.ascontiguousarray(np.asarray(x, dtype=float)).tobytes())
     return h.hexdigest()[:16]
+
+
+def _leaf_shapes(module) -> list[list[int]]:
+    """The shapes of a module's array leaves (to match a store)."""
+    return [list(np.shape(x)) for x in jax.tree_util.tree_leaves(module)]
+
+
+# Packages whose classes a store's key names by description and form only
+# (a class made by `type()` may name "abc" as its module: only `abc.ABC` is
+# known there).
+_KNOWN_CODE = ("jaxrock", "equinox", "builtins", "typing", "collections")
+
+
+def _code_digest(*modules) -> str | None:
+    """A short fingerprint of the code of the classes of `modules` defined
+    outside jaxrock (a user's isolator or motion): their functions' bytecode,
+    constants and names and their plain class values, not their file or
+    lines (a notebook's cell has another file name in every session); None
+    where there are none. A class edited and run again into a store is
+    another map."""
+    h, found = hashlib.sha256(), False
+    for module in modules:
+        for cls in type(module).__mro__:
+            known = (cls.__module__ or "").split(".")[0] in _KNOWN_CODE
+            if known or cls is abc.ABC:
+                continue
+            found = True
+            h.update(cls.__qualname__.encode())
+            for name, value in sorted(vars(cls).items()):
+                if isinstance(value, property):
+                    value = value.fget
+                value = getattr(value, "__func__", value)  # static, class
+                if hasattr(value, "__code__"):
+                    h.update(name.encode())
+                    _hash_code(h, value.__code__)
+                elif isinstance(value, (bool, int, float, str, tuple)):
+                    h.update(f"{name}={value!r}".encode())
+    return h.hexdigest()[:16] if found else None
+
+
+def _hash_code(h, code) -> None:
+    h.update(code.co_code)
+    h.update(repr((code.co_names, code.co_varnames)).encode())
+    for c in code.co_consts:
+        if hasattr(c, "co_code"):
+            _hash_code(h, c)
+        else:
+            h.update(repr(c).encode())
 
 
 def _cells_of(module, shape, index):
@@ -162,6 +211,16 @@ class Grid:
             extra[name] = np.asarray(values, dtype=float).tolist()
         if self.friction is not None:
             extra["friction"] = self.friction
+        # The leaves' digest concatenates their values: a batch's shapes tell
+        # period [2, 2.5] with damping 0.35 from period 2 with damping
+        # [2.5, 0.35] (and transposed axes of two parameters).
+        if self.base_shape:
+            extra["base_shapes"] = _leaf_shapes(self.base)
+        if self.motion_shape and self.layout is MotionLayout.PER_CELL:
+            extra["motion_shapes"] = _leaf_shapes(self.motion)
+        code = _code_digest(self.base, self.motion)
+        if code is not None:
+            extra["code"] = code
         tolerances = (opts.rtol, opts.atol, opts.rest_tolerance, opts.step)
         return json.dumps(
             dict(

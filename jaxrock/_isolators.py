@@ -10,9 +10,11 @@ never appears.
 """
 
 import abc
+import operator
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -21,6 +23,7 @@ from ._misc import (
     AbstractChecked,
     Constraint,
     at_least_zero,
+    broadcast_batch_shape,
     check,
     computed_once,
     describe_values,
@@ -236,6 +239,72 @@ class AbstractIsolator(AbstractChecked):
         base's energy E cannot grow then, and bounds both. Used to end an
         analysis early (nothing can happen any more); +inf where no bound holds.
         """
+
+
+def check_declared_shapes(base: AbstractIsolator) -> None:
+    """`ValueError` naming the member of an isolator defined outside jaxrock
+    (a user's own) that disagrees with its `n_states`: `initial_state()` and
+    `rates(state, u_ddot)` of shape (n_states,) and one dtype, `force(state)`
+    and `block_mass_fraction` scalars (for one isolator of a batch). Traced
+    abstractly (`jax.eval_shape`): nothing runs. Such a mismatch would
+    otherwise broadcast silently or fail deep inside the engine."""
+    if isinstance(base, FixedBase) or type(base).__module__.startswith("jaxrock."):
+        return
+    name = type(base).__name__
+    n = getattr(base, "n_states", None)
+    try:
+        n = None if isinstance(n, bool) else operator.index(n)
+    except TypeError:
+        n = None
+    if n is None or n < 2:
+        n = getattr(base, "n_states", None)
+        raise ValueError(
+            f"`{name}.n_states` must be an int >= 2 (the state holds u, u' and "
+            f"what the hysteresis needs), got {n!r}"
+        )
+    shape = broadcast_batch_shape(base)
+
+    def one(x):  # the batch's first isolator
+        return jnp.reshape(jnp.broadcast_to(x, shape), (-1,))[0] if shape else x
+
+    def members(b):
+        b = jax.tree_util.tree_map(one, b)
+        state = b.initial_state()
+        if state is None:
+            return None
+        state = jnp.asarray(state)
+        if state.shape != (n,):
+            return state, None, None, None
+        u_ddot = jnp.zeros((), dtype=jnp.result_type(float))
+        force = jnp.asarray(b.force(state))
+        rates = jnp.asarray(b.rates(state, u_ddot))
+        return state, force, rates, jnp.asarray(b.block_mass_fraction)
+
+    out = jax.eval_shape(members, base)
+    if out is None:
+        raise ValueError(f"`{name}.initial_state()` must be an array, got None")
+    state, force, rates, fraction = out
+    expected = f"shape ({n},) (`n_states` = {n})"
+    if state.shape != (n,):
+        raise ValueError(
+            f"`{name}.initial_state()` must be of {expected}, got {state.shape}"
+        )
+    if force.shape != ():
+        raise ValueError(f"`{name}.force(state)` must be a scalar, got {force.shape}")
+    if rates.shape != (n,):
+        raise ValueError(
+            f"`{name}.rates(state, u_ddot)` must be of {expected}, got {rates.shape}"
+        )
+    if rates.dtype != state.dtype:
+        raise ValueError(
+            f"`{name}.rates(state, u_ddot)` is {rates.dtype} where "
+            f"`initial_state()` is {state.dtype}: give the state the dtype of "
+            "the isolator's parameters"
+        )
+    if fraction.shape != ():
+        raise ValueError(
+            f"`{name}.block_mass_fraction` must be a scalar, got {fraction.shape}"
+        )
 
 
 def describe_base(base: AbstractIsolator) -> str:

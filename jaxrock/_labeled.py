@@ -3,6 +3,7 @@ parameters of the base and the motion), and NetCDF and Zarr files."""
 
 import dataclasses
 import importlib
+import re
 from pathlib import Path
 from typing import NamedTuple
 
@@ -155,11 +156,62 @@ def _parameters(module, shape, dims) -> dict[str, tuple]:
         x = np.asarray(getattr(module, field.name))
         if unit is None or x.ndim > len(shape):  # (a record's samples)
             continue
-        lead = len(shape) - x.ndim
-        keep = [k for k in range(x.ndim) if x.shape[k] == shape[lead + k]]
-        x = x[tuple(slice(None) if k in keep else 0 for k in range(x.ndim))]
-        out[field.name] = (tuple(dims[lead + k] for k in keep), x, {"units": unit})
+        out[field.name] = _coordinate(x, shape, dims, unit)
     return out
+
+
+def _coordinate(x, shape, dims, unit: str) -> tuple:
+    """The coordinate of values `x` over a batch of `shape` with dimensions
+    `dims`: over the axes it has (not those it is broadcast along)."""
+    x = np.asarray(x)
+    lead = len(shape) - x.ndim
+    keep = [k for k in range(x.ndim) if x.shape[k] == shape[lead + k]]
+    x = x[tuple(slice(None) if k in keep else 0 for k in range(x.ndim))]
+    return (tuple(dims[lead + k] for k in keep), x, {"units": unit})
+
+
+def _base_parameters(base, shape, dims) -> dict[str, tuple]:
+    """`_parameters` of a base, with its `capacity` (m) and its `Stop`'s
+    (`stop_period`, `stop_damping`) where it has them: a batch of
+    capacities or stops is labelled as one of periods is."""
+    out = _parameters(base, shape, dims)
+    if getattr(base, "capacity", None) is not None:
+        out["capacity"] = _coordinate(base.capacity, shape, dims, "m")
+    if getattr(base, "stop", None) is not None:
+        stop = _parameters(base.stop, shape, dims)
+        out |= {"stop_" + name: c for name, c in stop.items()}
+    return out
+
+
+# Names the results give themselves: their dimensions, per-cell fields, the
+# restitution axis, and the coordinates and fields of fragility curves and
+# spectra. A parameter of one's own isolator or motion named so is prefixed
+# "base_" or "motion_", as a name both use is.
+_OWN_NAMES = frozenset(ATTRS) | {
+    "restitution",
+    "restitution_factor",
+    "scale",
+    "level",
+    "damage_state",
+    "im",
+    "rocked",
+    "overturned",
+    "exceeded",
+    "minimum",
+    "frequency_ratio",
+    "amplitude_ratio",
+}
+
+
+def _prefixed(part: dict, prefix: str) -> dict:
+    """`part` with each name the results use themselves (`_OWN_NAMES`, a
+    dimension's name) prefixed."""
+
+    def own(name: str) -> bool:
+        dimension = re.fullmatch(r"(base|motion|record|batch)(_\d+)?", name)
+        return name in _OWN_NAMES or dimension is not None
+
+    return {(prefix + n if own(n) else n): c for n, c in part.items()}
 
 
 def coordinates(base, motion=None, restitution=None) -> Coordinates:
@@ -168,12 +220,12 @@ def coordinates(base, motion=None, restitution=None) -> Coordinates:
     the `Block` keyword and its values, an axis if 1-D)."""
     shape = broadcast_batch_shape(base)
     dims = _axis_names("base", len(shape))
-    parts = [_parameters(base, shape, dims)]
+    parts = [_prefixed(_base_parameters(base, shape, dims), "base_")]
     if motion is not None:
         shape = motion.batch_shape
         kind = "record" if isinstance(motion, Record) else "motion"
         motion_dims = _axis_names(kind, len(shape))
-        found = _parameters(motion, shape, motion_dims)
+        found = _prefixed(_parameters(motion, shape, motion_dims), "motion_")
         names = motion.names()
         if names is not None:
             labels = np.array(["" if n is None else str(n) for n in names], object)

@@ -52,7 +52,7 @@ from ._events import (
     slide_margin,
 )
 from ._ground import AbstractGroundMotion
-from ._isolators import AbstractIsolator
+from ._isolators import AbstractIsolator, check_declared_shapes
 from ._misc import GRAVITY, first_true, is_none
 from ._results import EventKind, Outcome, Response, Status
 from ._scene import (
@@ -799,3 +799,4 @@ def check_base_and_motion(base, motion):
             "(MPPulse, SinePulse, Record, one of these with a vertical part, or "
             f"a subclass of your own), got {type(motion).__name__}"
         )
+    check_declared_shapes(base)

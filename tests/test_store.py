@@ -398,3 +398,16 @@ def test_save_at_an_upper_case_suffix_on_a_full_disk_leaves_nothing(
     with pytest.raises(OSError, match=r"cannot write .*m\.NPZ: No space left"):
         small_map.save(tmp_path / "m.NPZ")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_store_tells_batches_whose_leaves_differ_only_in_shape(tmp_path):
+    """Two batches of bases with the same values and descriptions but
+    parameters on other axes (period down, damping across, and transposed)
+    are two maps: the second is refused, not read from the first's chunks."""
+    lam, size = LAM[1:3], SIZE[:2]
+    a = jr.LinearIsolator(np.array([[2.0], [2.5]]), np.array([0.1, 0.5]), 0.5)
+    b = jr.LinearIsolator(np.array([2.0, 2.5]), np.array([[0.1], [0.5]]), 0.5)
+    assert a.describe() == b.describe()
+    jr.behavior_map(lam, size, a, PULSE, store=tmp_path, progress=False)
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(lam, size, b, PULSE, store=tmp_path, progress=False)

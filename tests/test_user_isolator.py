@@ -130,3 +130,67 @@ def test_a_toy_spring_written_in_a_test_runs_through_simulate_maps_and_jacfwd():
     central = (float(peak_u(2.0 + h)) - float(peak_u(2.0 - h))) / (2 * h)
     assert central != 0
     assert derivative == pytest.approx(central, rel=1e-5)
+
+
+@pytest.mark.parametrize(
+    "member, wrong, message",
+    [
+        ("rates", lambda self, s, a: jax.numpy.stack([s[1]]), r"rates.*got \(1,\)"),
+        ("rates", lambda self, s, a: jax.numpy.stack([s[1], a, a]), r"got \(3,\)"),
+        ("force", lambda self, s: (2.0 * np.pi / self.period) ** 2 * s, "scalar"),
+        ("initial_state", lambda self: jax.numpy.zeros(3), r"state\(\).*\(3,\)"),
+        ("initial_state", lambda self: None, "got None"),
+        ("initial_state", lambda self: jax.numpy.zeros(2, "float32"), "float32"),
+        ("n_states", 3, r"`n_states` = 3"),
+    ],
+)
+def test_a_member_of_the_wrong_shape_is_named_before_anything_runs(
+    member, wrong, message
+):
+    """A user isolator whose members disagree with `n_states` is refused by
+    name, in simulate, maps and under jacfwd, rather than broadcast (rates of
+    one entry ran to UNDECIDED with a rotation of 0) or failing deep inside."""
+    buggy = type("Buggy", (Spring,), {member: wrong})
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.5)
+    with pytest.raises(ValueError, match=message):
+        jr.simulate(jr.Block(2.5, 0.4), buggy(2.0, 0.5), pulse)
+    with pytest.raises(ValueError, match=message):
+        jr.behavior_map([2.5], [0.4], buggy(np.array([2.0, 2.5]), 0.5), pulse)
+    with pytest.raises(ValueError, match=message):
+        jax.jacfwd(
+            lambda p: jr.simulate(jr.Block(2.5, 0.4), buggy(p, 0.5), pulse).max_rotation
+        )(2.0)
+
+
+def test_a_parameter_named_as_a_field_of_the_map_keeps_the_maps_labels():
+    """A user's parameter named `size` (a bearing's) or `outcome` is the
+    coordinate `base_size` / `base_outcome`: it replaced the blocks' sizes
+    (the map's own `size` labels lost) or made `to_xarray` raise."""
+    pytest.importorskip("xarray")
+    for name in ("size", "outcome"):
+        own = {"__annotations__": {name: jax.Array}, name: jr.parameter(name, "m")}
+        bearing = type("Bearing", (Spring,), own)(2.0, 0.5, np.array([0.2, 0.4]))
+        bm = jr.behavior_map([2.5], [0.4, 1.5], bearing, PULSE, progress=False)
+        ds = bm.to_xarray()
+        np.testing.assert_array_equal(ds["size"], [0.4, 1.5])
+        assert ds["size"].dims == ("size",) and ds.outcome.dims[0] == "base"
+        np.testing.assert_array_equal(ds["base_" + name], [0.2, 0.4])
+        assert ds["base_" + name].attrs["units"] == "m"
+
+
+def test_an_edited_isolator_of_the_same_name_is_another_map_in_a_store(tmp_path):
+    """A store's key holds the code of a user's isolator class: the class
+    edited (a stiffer spring) and run again into the store is refused, not
+    read from the first class's chunks; the same class resumes."""
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.5)
+    stiffer = type(
+        "Spring",
+        (Spring,),
+        {"force": lambda self, state: 2 * Spring.force(self, state)},
+    )
+    lam, size = [2.5], [0.4]
+    first = jr.behavior_map(lam, size, Spring(2.0, 0.5), pulse, store=tmp_path)
+    again = jr.behavior_map(lam, size, Spring(2.0, 0.5), pulse, store=tmp_path)
+    np.testing.assert_array_equal(again.max_rotation, first.max_rotation)
+    with pytest.raises(ValueError, match="another map"):
+        jr.behavior_map(lam, size, stiffer(2.0, 0.5), pulse, store=tmp_path)

@@ -103,3 +103,24 @@ def test_files_and_missing_packages_are_named(linear_map, tmp_path, monkeypatch)
     back = jr.BehaviorMap.load(tmp_path / "map.npz")
     np.testing.assert_array_equal(back.max_rotation, linear_map.max_rotation)
     assert back.coordinates.coords.keys() == linear_map.coordinates.coords.keys()
+
+
+def test_a_batch_of_capacities_or_stops_labels_its_base_axis(tmp_path):
+    """`capacity` (m) and a `Stop`'s period and damping are parameters of the
+    base like its period: a batch of them is a coordinate of the base axis
+    (it was none: the axis unlabeled), kept through a NetCDF file."""
+    capacities = jr.LinearIsolator(2.0, 0.35, 0.5, capacity=np.array([0.05, 0.3]))
+    stops = jr.LinearIsolator(
+        2.0, 0.35, 0.5, capacity=0.1, stop=jr.Stop(np.array([0.05, 0.1]))
+    )
+    for base, name, unit in [
+        (capacities, "capacity", "m"),
+        (stops, "stop_period", "s"),
+    ]:
+        bm = jr.behavior_map([2.5], [0.4], base, PULSE, progress=False)
+        ds = bm.to_xarray()
+        assert ds[name].dims == ("base",) and ds[name].attrs["units"] == unit
+        assert ds.outcome.sel({name: 0.05}).shape == (1, 1)
+        bm.save(tmp_path / f"{name}.nc")
+        back = jr.BehaviorMap.load(tmp_path / f"{name}.nc").to_xarray()
+        assert back.identical(ds)
