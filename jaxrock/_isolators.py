@@ -305,6 +305,14 @@ def check_declared_shapes(base: AbstractIsolator) -> None:
         raise ValueError(
             f"`{name}.block_mass_fraction` must be a scalar, got {fraction.shape}"
         )
+    leaves = jax.tree_util.tree_leaves(base)
+    if not any(isinstance(x, jax.core.Tracer) for x in leaves):
+        check(
+            f"{name}.block_mass_fraction",
+            base.block_mass_fraction,
+            lambda m: (m > 0) & (m < 1),
+            "in (0, 1): m / M, the block's mass over the total mass",
+        )
 
 
 def describe_base(base: AbstractIsolator) -> str:

@@ -194,3 +194,13 @@ def test_an_edited_isolator_of_the_same_name_is_another_map_in_a_store(tmp_path)
     np.testing.assert_array_equal(again.max_rotation, first.max_rotation)
     with pytest.raises(ValueError, match="another map"):
         jr.behavior_map(lam, size, stiffer(2.0, 0.5), pulse, store=tmp_path)
+
+
+def test_a_block_mass_fraction_out_of_range_is_named():
+    """m / M of a user's isolator outside (0, 1) is refused by its name,
+    not as a coefficient of restitution it makes out of range."""
+    heavy = type("Heavy", (Spring,), {"block_mass_fraction": property(lambda s: 2.0)})
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.5)
+    for run in (jr.simulate, lambda b, base, p: jr.behavior_map([2.5], [0.4], base, p)):
+        with pytest.raises(ValueError, match=r"`Heavy.block_mass_fraction` must be in"):
+            run(jr.Block(2.5, 0.4), heavy(2.0, 0.5), pulse)
