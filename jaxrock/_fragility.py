@@ -360,7 +360,8 @@ class Fragility(eqx.Module):
         slenderness: the block's lambda = h / b (-).
         size: the block's half-diagonal r (m).
         base: a description of the base.
-        motion: a description of the motions (scaled).
+        motion: a description of the motions as given, and of their scales
+            or levels.
         seconds: the wall time of the analyses (s).
         scales: the amplitude factors (-); None for motions as given.
         levels: the intensity levels of a multiple-stripe analysis (in the
@@ -734,9 +735,14 @@ def fragility(
     states, parsed = _checked(measure, base, motions, slenderness, size, damage_states)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
+    described = motions.describe()
     motions, scales, levels = _scaled(
         motions, scales, levels, measure, slenderness, size
     )
+    if scales is not None:
+        described += f", at {scales.size} scales"
+    if levels is not None:
+        described += f", scaled to {levels.size} levels of {measure}"
     im = _moving_measure(motions, measure, slenderness, size)
     if levels is not None:
         # Each stripe's records are scaled to its level: their measures equal
@@ -753,7 +759,7 @@ def fragility(
         slenderness=float(slenderness),
         size=float(size),
         base=bm.base,
-        motion=bm.motion,
+        motion=described,
         seconds=bm.seconds,
         scales=scales,
         levels=levels,

@@ -295,6 +295,8 @@ def test_a_multiple_stripe_analysis_is_the_binomial_fit_of_its_stripes():
     assert frag.beta_overturning == pytest.approx(beta, rel=1e-10)
     ds = frag.to_xarray()
     assert ds.im.dims == ("level", "record")
+    assert frag.motion.startswith("suite of 10 records (dt = ")
+    assert frag.motion.endswith(", scaled to 7 levels of sa:1.0")
     with pytest.raises(ValueError, match="d5_95"):
         jr.fragility(4.0, 1.0, jr.FixedBase(), suite, levels=levels, measure="d5_95")
     with pytest.raises(ValueError, match="Record"):
