@@ -14,7 +14,14 @@ from ._flat import flat_step
 from ._free import free_rocking, free_rocking_ready
 from ._isolators import AbstractIsolator
 from ._misc import where_lanes
-from ._model import Carry, initial_carry, is_active, response, with_start_conditions
+from ._model import (
+    Carry,
+    initial_carry,
+    is_active,
+    lane_window,
+    response,
+    with_start_conditions,
+)
 from ._results import SolverOptions
 from ._scene import MotionLayout, closed_form_tail, prepare
 from ._signal import AbstractSignal
@@ -304,9 +311,11 @@ class _Chunk(eqx.Module):
         if closed_form_tail(blocks, self.base):
             ready = is_active(carries, self.opts)
             ready = ready & ~self.pilot & (carries.phase != Phase.TRANSLATION)
-            final = free_rocking(
-                carries, blocks, self.base, self.duration, self.opts, ready
-            )
+            motions = self.motion  # each cell's, for its window's end
+            if self.layout is MotionLayout.SUITE:
+                motions = self.motion.row(self.suite_index)
+            window = lane_window(motions, self.duration, self.opts)
+            final = free_rocking(carries, blocks, self.base, window, self.opts, ready)
         responses = jax.vmap(response, in_axes=(0, 0, 0, None))(
             final, blocks, self.base, self.opts
         )

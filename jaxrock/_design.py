@@ -92,7 +92,7 @@ def responses(
             whose samples every lane reads in place.
         duration: the length of every analysis (s); default None: each runs
             until its block's fate is decided, for at most 60 s after the
-            latest end of the motions (`simulate`).
+            end of its own motion (`simulate`).
         opts: the numerical options (`SolverOptions`).
 
     Returns:

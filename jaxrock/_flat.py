@@ -508,7 +508,7 @@ class _Jump(eqx.Module):
     search_from: jax.Array
 
 
-def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
+def _rest_jump(c, a: _Attempt, block, base, motion, duration, opts) -> _Jump:
     """A lane at rest at sample k on a linear isolator, under a record with
     translation tables (`_scene.rest_jumps`), jumps to the first sample
     interval m over which the block could uplift or |u| reach a new maximum,
@@ -530,7 +530,7 @@ def _rest_jump(c, a: _Attempt, block, base, motion, duration) -> _Jump:
     displacement = jnp.where(c.rocked, c.max_u * margin - u_bound, jnp.inf)
     m = motion.translation_first(k, acceleration, displacement)
     t = motion.sample_time(m)
-    _, t_stop = segment_end(c, motion, duration)
+    _, t_stop = segment_end(c, motion, duration, opts)
     go = a.searches & (m >= k + 2) & ~a.event & (t <= jnp.minimum(t_stop, c.t_limit))
     state = motion.translation_state(m) + base.free_vibration(h, t - a.t0)
     max_u = jnp.where(c.rocked, c.max_u, motion.translation_displacement_max(m))
@@ -689,16 +689,16 @@ def _moved(c, a: _Attempt, block, base, motion, in_axes):
     return moved
 
 
-def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration):
+def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts):
     """`_rest_jump` of a batch's lanes (None: the scene has no
     `rest_jumps`), computed only if one of them searches."""
     if not rest_jumps(motion):
         return None
-    jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None))
+    jumps = jax.vmap(_rest_jump, in_axes=(0, 0, 0, 0, motion_axes, None, None))
     block, base = sub.args.block, sub.args.base
     return jax.lax.cond(
         jnp.any(sub.searches & valid),
-        lambda: jumps(sub_c, sub, block, base, motion, duration),
+        lambda: jumps(sub_c, sub, block, base, motion, duration, opts),
         lambda: _Jump(
             jnp.zeros_like(sub.searches),
             sub.t0,
@@ -718,7 +718,7 @@ def _end_lanes(
     steps."""
     located = _locate_batch(sub, valid, opts, motion, motion_axes, unrolled)
     block, base = sub.args.block, sub.args.base
-    jump = _rest_jumps(sub_c, sub, valid, motion, motion_axes, duration)
+    jump = _rest_jumps(sub_c, sub, valid, motion, motion_axes, duration, opts)
     new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
         sub_c, sub, located, jump, block, base, motion, duration, opts
     )

@@ -219,7 +219,7 @@ def behavior_map(
 
     Every cell is the exact analysis of `simulate` (without a `duration`:
     until the block's fate is decided, at most `DECISION_WINDOW` s after the
-    latest end of the motions); on a fixed base the free
+    end of the cell's own motion, as under it alone); on a fixed base the free
     rocking after the excitation is finished in closed form (`_free.py`: the
     same apexes, impacts, rest rule and segments, without steps; `steps`
     counts the integrated part). The parameters of `base` and

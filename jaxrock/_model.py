@@ -54,7 +54,7 @@ from ._events import (
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator, check_declared_shapes
 from ._misc import GRAVITY, first_true, is_none
-from ._results import EventKind, Outcome, Response, Status
+from ._results import DECISION_WINDOW, EventKind, Outcome, Response, Status
 from ._scene import (
     carries_conditions,
     carries_quiet_end,
@@ -194,12 +194,24 @@ def is_active(c: Carry, opts):
     return ~c.done & (c.segments < opts.max_segments)
 
 
-def segment_end(c: Carry, motion, duration):
+def lane_window(motion, duration, opts):
+    """The end of a lane's analysis (s): `duration`, or where it runs until
+    decided (`SolverOptions.until_decided`), `DECISION_WINDOW` after the end
+    of the lane's own motion. A batch's or a suite's `duration` ends that
+    long after its longest motion: each cell then ends as under its motion
+    alone."""
+    own = motion.end_time + DECISION_WINDOW
+    return jnp.where(opts.until_decided, jnp.minimum(duration, own), duration)
+
+
+def segment_end(c: Carry, motion, duration, opts):
     """(shaking, end of the segment): a segment stops at the end of the
     excitation (the step limit that keeps uplifts from hiding inside a step is
-    needed only while the ground moves), else at `duration`."""
+    needed only while the ground moves), else at the lane's window's end
+    (`lane_window`)."""
+    end = lane_window(motion, duration, opts)
     shaking = c.t < motion.end_time
-    return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, duration), duration)
+    return shaking, jnp.where(shaking, jnp.minimum(motion.end_time, end), end)
 
 
 def segment_setup(c: Carry, block, base, motion, duration, opts):
@@ -209,7 +221,7 @@ def segment_setup(c: Carry, block, base, motion, duration, opts):
     active = is_active(c, opts)
     args = segment_args(c, block, base, motion)
     conditions = event_conditions(block, base, motion)
-    shaking, t_stop = segment_end(c, motion, duration)
+    shaking, t_stop = segment_end(c, motion, duration, opts)
     t_stop = jnp.minimum(t_stop, c.t_limit)
     quiet_below = quiet_level(c, block, base, motion)
     kinks = motion.limits_steps(quiet_below is not None)
@@ -374,7 +386,7 @@ def _classify_end(c: Carry, sol, motion, duration, opts, active) -> _SegmentEnd:
     reached_end = sol.result == diffrax.RESULTS.successful
     # A step that ends before the segment's end (the flat loop of maps) only
     # moves the state on.
-    cut = reached_end & (t < segment_end(c, motion, duration)[1])
+    cut = reached_end & (t < segment_end(c, motion, duration, opts)[1])
     segment_steps = c.segment_steps + sol.stats["num_steps"]
     too_long = segment_steps > opts.max_steps
     failed = active & (~(event | reached_end) | too_long)
@@ -582,7 +594,7 @@ def _advance(
     still = ev.quiet | (quiet(y, args) <= 0)
     max_theta = jnp.where(ev.overturn, 0.5 * jnp.pi, max_theta)
     steps = sol.stats["num_steps"]
-    over = end.reached_end & ~end.event & (t >= duration)
+    over = end.reached_end & ~end.event & (t >= lane_window(motion, duration, opts))
     # Run until decided (`SolverOptions.until_decided`), the window's end
     # leaves the fate open unless the block can no longer overturn: also where
     # the base still moves, too weakly to lift it (its max |u| may still rise
@@ -703,7 +715,7 @@ def moves_on(c: Carry, t, base_state, failed, base, motion, duration, opts):
     end and within `max_steps`, and the base's `at_transition` keeps its
     state (it does not `turns_back`). `transition` then reduces to `move_on`."""
     active = is_active(c, opts)
-    cut = t < segment_end(c, motion, duration)[1]
+    cut = t < segment_end(c, motion, duration, opts)[1]
     kept = True if base_state is None else ~base.turns_back(base_state)
     return active & ~failed & cut & (c.segment_steps < opts.max_steps) & kept
 

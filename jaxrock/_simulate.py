@@ -40,6 +40,7 @@ from ._model import (
     check_base_and_motion,
     initial_carry,
     is_active,
+    lane_window,
     response,
     segment_setup,
     transition,
@@ -190,7 +191,8 @@ def run(block, base, motion, duration, opts: SolverOptions) -> Response:
     motion = prepare(motion)
     carry = jax.lax.while_loop(cond, body, initial_carry(block, base, motion, valid))
     if closed_form_tail(block, base):
-        carry = free_rocking(carry, block, base, duration, opts, tail(carry))
+        window = lane_window(motion, duration, opts)
+        carry = free_rocking(carry, block, base, window, opts, tail(carry))
     return response(carry, block, base, opts)
 
 

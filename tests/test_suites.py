@@ -357,3 +357,29 @@ def test_an_empty_record_name_is_no_name():
     assert jr.Record(x, 0.01, name="").name is None
     suite = jr.Record.stack([jr.Record(x, 0.01, name=""), jr.Record(x, 0.01, name="b")])
     assert suite.names() == (None, "b")
+
+
+def test_a_cell_of_a_short_record_in_a_suite_ends_as_under_it_alone():
+    """Run until decided, each cell's window ends `DECISION_WINDOW` after its
+    own record, not after the suite's longest: a large block on a lightly
+    damped isolator still rocks 60 s after a short record, UNDECIDED alone
+    and so in a suite beside a long one (which ran it 40 s longer, to 54
+    impacts and SUCCESS)."""
+    size = 100.0
+    p = np.sqrt(3 * 9.81 / (4 * size))
+    pulse = jr.SinePulse(9.81 / 4 * 1.2, 4 * p / (2 * np.pi))
+    dt = 0.01
+    t = np.arange(0.0, float(pulse.end_time) + dt / 2, dt)
+    samples = np.array([float(pulse.acceleration(x)) for x in t])
+    samples[-1] = 0.0
+    short = jr.Record(samples, dt)
+    long = jr.Record(np.concatenate([samples, np.zeros(4000)]), dt)
+    base = jr.LinearIsolator(4.0, 0.02, 0.5)
+    alone = jr.simulate(jr.Block(4.0, size), base, short)
+    assert alone.status == jr.Status.UNDECIDED
+    bm = jr.behavior_map([4.0], [size], base, jr.Record.stack([short, long]))
+    cell = bm.select(0)
+    assert cell.status[0, 0] == alone.status and cell.outcome[0, 0] == alone.outcome
+    assert cell.impacts[0, 0] == alone.impacts
+    np.testing.assert_allclose(cell.max_rotation[0, 0], alone.max_rotation, rtol=1e-9)
+    assert bm.select(1).impacts[0, 0] > alone.impacts
