@@ -12,8 +12,8 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._misc import (
     AbstractChecked,
-    at_least_zero,
     greater_than_zero,
+    in_range,
     is_count,
     one_real_number,
     parameter,
@@ -239,7 +239,7 @@ class SolverOptions(AbstractChecked):
         max_segments: the limit on the segments (events) of one analysis, an
             integer >= 1; default 2000.
         rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
-            >= 0; default 1e-6.
+            in [0, 0.01]; default 1e-6.
         solver: an adaptive Diffrax solver of one ODE term (an instance);
             default `diffrax.Tsit5()`.
         step: a fixed step (s), > 0, instead of the step-size controller;
@@ -299,7 +299,9 @@ class SolverOptions(AbstractChecked):
         out = [
             greater_than_zero("rtol", self.rtol),
             greater_than_zero("atol", self.atol),
-            at_least_zero("rest_tolerance", self.rest_tolerance),
+            # A rebound above 1% of alpha is rocking, not chatter: larger
+            # values call blocks at rest that rock on (and change outcomes).
+            in_range("rest_tolerance", self.rest_tolerance, 0.0, 0.01),
         ]
         if self.step is not None:
             out.append(greater_than_zero("step", self.step))

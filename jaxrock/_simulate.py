@@ -530,7 +530,7 @@ def simulate(
         max_segments: the limit on segments (events) of the analysis; default
             2000.
         rest_tolerance: the rest rule's threshold, a fraction of alpha (-),
-            >= 0 (`SolverOptions`).
+            in [0, 0.01] (`SolverOptions`).
         solver: a Diffrax solver; default `diffrax.Tsit5()`.
 
     Returns:

@@ -89,6 +89,10 @@ def test_bad_input_names_parameter(make, name):
 
 def test_error_message_states_range():
     with pytest.raises(
+        ValueError, match=r"`rest_tolerance` must be finite, >= 0 and <= 0.01, got 1.0"
+    ):
+        jr.SolverOptions(rest_tolerance=1.0)
+    with pytest.raises(
         ValueError, match=r"`size` must be finite, >= 0.001 and <= 1000 \(m\), got -1.0"
     ):
         jr.Block(3.0, -1.0)
