@@ -19,6 +19,9 @@ from ._signal import AbstractSignal
 _SAFETY = 0.9
 _FACTOR_MIN = 0.2
 _FACTOR_MAX = 10.0
+# The smallest step (s, relative to max(|t|, 1 s)) a rejected step may
+# propose: below it the solve has failed.
+_SMALLEST_STEP = 1e-14
 
 
 class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
@@ -33,7 +36,10 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
     if not, at most `dtmax` (q: the solver's error order). The power is
     exp(-log(err) / q): XLA vectorizes exp and log over lanes, where a
     float64 power is a scalar library call per lane (5% of the fixed base's
-    record map). Derivatives do not flow through step sizes.
+    record map). Derivatives do not flow through step sizes. A NaN error
+    rejects the step (shrunk by 0.2); a rejected step that would shrink
+    below 1e-14 max(|t|, 1 s) ends the solve as failed (`dt_min_reached`:
+    `Status.SOLVER_FAILED`), as where the vector field is not finite.
     """
 
     rtol: float
@@ -60,6 +66,9 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
             return error / (self.atol + jnp.maximum(jnp.abs(a), jnp.abs(b)) * self.rtol)
 
         error = self.norm(jax.tree_util.tree_map(scaled, y0, y1, y_error))
+        # A NaN error (a vector field that gave NaN) rejects the step and
+        # shrinks the next by the most.
+        error = jnp.where(jnp.isnan(error), jnp.inf, error)
         keep = error < 1
         inverse = jax.lax.stop_gradient(1 / error)
         factor = _SAFETY * jnp.exp(jnp.log(inverse) / error_order)
@@ -72,7 +81,13 @@ class StepSizeController(diffrax.AbstractAdaptiveStepSizeController):
         if self.dtmax is not None:
             dt = jnp.minimum(dt, self.dtmax)
         next_t0 = jnp.where(keep, t1, t0)
-        return keep, next_t0, next_t0 + dt, False, state, diffrax.RESULTS.successful
+        # A rejected step shrunk below any useful size (the vector field is
+        # not finite there): the solve has failed, not run out of steps.
+        stalled = ~keep & (dt < _SMALLEST_STEP * jnp.maximum(jnp.abs(t0), 1.0))
+        result = diffrax.RESULTS.where(
+            stalled, diffrax.RESULTS.dt_min_reached, diffrax.RESULTS.successful
+        )
+        return keep, next_t0, next_t0 + dt, False, state, result
 
 
 class KinkClip(diffrax.AbstractAdaptiveStepSizeController):

@@ -204,3 +204,23 @@ def test_a_block_mass_fraction_out_of_range_is_named():
     for run in (jr.simulate, lambda b, base, p: jr.behavior_map([2.5], [0.4], base, p)):
         with pytest.raises(ValueError, match=r"`Heavy.block_mass_fraction` must be in"):
             run(jr.Block(2.5, 0.4), heavy(2.0, 0.5), pulse)
+
+
+def test_an_isolator_whose_force_is_nan_fails_as_a_solver_failure():
+    """A force that turns NaN once the base moves fails the solve: the step
+    size shrinks to nothing, and the analysis ends SOLVER_FAILED (not
+    MAX_STEPS, which a larger limit would cure), in simulate and maps."""
+    broken = type(
+        "Broken",
+        (Spring,),
+        {
+            "force": lambda self, s: jax.numpy.where(
+                jax.numpy.abs(s[0]) > 1e-3, jax.numpy.nan, Spring.force(self, s)
+            )
+        },
+    )
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN", scale=0.5)
+    r = jr.simulate(jr.Block(2.5, 0.4), broken(2.0, 0.5), pulse)
+    assert r.status == jr.Status.SOLVER_FAILED
+    bm = jr.behavior_map([2.5, 4.0], [0.4], broken(2.0, 0.5), pulse)
+    assert np.all(bm.status == jr.Status.SOLVER_FAILED)
