@@ -27,7 +27,6 @@ from ._misc import (
     check,
     computed_once,
     describe_values,
-    finite,
     greater_than_zero,
     nonempty,
     parameter,
@@ -499,7 +498,9 @@ class AbstractBoucWenIsolator(AbstractIsolator):
             mass_ratio_constraint(self.mass_ratio),
             greater_than_zero("yield_displacement", self.yield_displacement),
             greater_than_zero("A", self.A),
-            finite("gamma", self.gamma),
+            # gamma < 0 (with gamma + beta > 0) is Bouc-Wen's unbounded class:
+            # after a reversal z grows on the beta - gamma branch without end.
+            at_least_zero("gamma", self.gamma),
             Constraint(
                 "beta", self.beta, lambda v: self.gamma + v > 0, "with gamma + beta > 0"
             ),
@@ -712,7 +713,7 @@ class FrictionPendulum(AbstractFrictionPendulum, AbstractClosedFormBoucWen):
         mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         yield_displacement: Y (m), > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        gamma: the Bouc-Wen gamma (-), >= 0; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
 
     Raises:
@@ -749,7 +750,7 @@ class BilinearIsolator(AbstractClosedFormBoucWen):
         yield_displacement: Y (m), > 0 (lead-rubber bearings: about 0.01-0.03).
         mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        gamma: the Bouc-Wen gamma (-), >= 0; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
 
     Raises:
@@ -823,7 +824,7 @@ class SphericalRollingIsolator(AbstractClosedFormBoucWen):
         yield_displacement: Y (m), the travel over which the rolling resistance
             builds up, > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        gamma: the Bouc-Wen gamma (-), >= 0; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
 
     Raises:
@@ -896,7 +897,7 @@ class ConicalRollingIsolator(AbstractClosedFormBoucWen):
         apex: d, the half-width of the rounded apex (m), > 0; default 1e-3.
         yield_displacement: Y (m), > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        gamma: the Bouc-Wen gamma (-), >= 0; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
 
     Raises:
@@ -980,7 +981,7 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         mass_ratio: m / m_b, block mass over base mass (-), in (0, 1e6].
         yield_displacement: Y (m), > 0; default 5e-4.
         A: the Bouc-Wen A (-), > 0; default 1.
-        gamma: the Bouc-Wen gamma (-), finite; default 0.9.
+        gamma: the Bouc-Wen gamma (-), >= 0; default 0.9.
         beta: the Bouc-Wen beta (-), with gamma + beta > 0; default 0.1.
         eta: the Bouc-Wen exponent (-), >= 1; default 2.
 

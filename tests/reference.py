@@ -395,6 +395,8 @@ def simulate(
         if fall_index is not None and len(sol.t_events[fall_index]):
             t, x = sol.t[-1], sol.y[:, -1].copy()
             max_th = max(max_th, abs(x[0]))
+            if not fixed:  # |u| where the block would leave its base
+                max_u = max(max_u, abs(x[2]))
             flight = True
             break
         hit = [len(sol.t_events[0]) > 0, len(sol.t_events[1]) > 0]

@@ -110,3 +110,23 @@ def test_a_cones_force_is_its_potentials_slope_and_never_exceeds_g_s():
 def test_rolling_isolator_parameters_out_of_range_are_named(make, name):
     with pytest.raises(ValueError, match=f"`{name}`"):
         make()
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda g, b: jr.BilinearIsolator(0.05, 2.5, 0.015, 0.5, gamma=g, beta=b),
+        lambda g, b: jr.FrictionPendulum(0.11, 2.24, 0.5, gamma=g, beta=b),
+        lambda g, b: jr.SphericalRollingIsolator(1.5, 0.005, 0.5, gamma=g, beta=b),
+        lambda g, b: jr.ConicalRollingIsolator(0.1, 0.005, 0.5, gamma=g, beta=b),
+        lambda g, b: jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, gamma=g, beta=b),
+    ],
+)
+def test_a_negative_gamma_is_refused(make):
+    """With gamma < 0 (and gamma + beta > 0) Bouc-Wen's z is unbounded: a
+    reversal from |z| near (A / (gamma + beta))^(1/eta) makes |z| grow on the
+    beta - gamma branch without end (a simulation ran to MAX_STEPS). gamma
+    must be >= 0, named in the error."""
+    with pytest.raises(ValueError, match="`gamma` must be finite and >= 0"):
+        make(-0.2, 0.3)
+    make(0.0, 0.3)  # gamma = 0: z stays within (A / beta)^(1/eta)
