@@ -375,7 +375,7 @@ def _dense_in_s(solver, a: "_Attempt"):
     return evaluate
 
 
-def _locate(a: _Attempt, opts, unfired=(), unrolled=True):
+def _locate(a: _Attempt, opts, unfired=()):
     """The event's time and state: bracketed Newton on [t0, t1] (the condition is
     > 0 at t0 and <= 0 at t1) on the step's dense output, from the secant.
 
@@ -389,10 +389,9 @@ def _locate(a: _Attempt, opts, unfired=(), unrolled=True):
 
     Newton runs in s = (t - t0) / h on the dense output in s (a quartic in s
     for Tsit5), `_NEWTON` iterations in a loop (a lane stops moving once
-    converged). Unrolled, they ran no faster under a record on a fixed base
-    or a linear isolator, and made the first map about 20% slower to start
-    (compiling); with `unrolled` they are unrolled on a base with a
-    hysteretic state (`_layout.Loop.newton_unrolled`).
+    converged). Unrolled, they ran no faster, on any base (a friction
+    pendulum's conditions too, which read its z), and its loop compiled in
+    1.3-1.5 times as long.
     """
     # The conditions of the attempt, one per entry of `fired` (the batch's
     # stand-ins for the ground and the base keep the same conditions).
@@ -433,12 +432,8 @@ def _locate(a: _Attempt, opts, unfired=(), unrolled=True):
         # XLA recomputes earlier iterations inside later ones).
         return tuple(computed_once(jnp.stack([s, lower, upper, step])))
 
-    # Unrolled (`unrolled`) where the conditions read a hysteretic force (a
-    # friction pendulum's z, costly): its maps run faster so, at a longer
-    # compile.
-    unroll = True if unrolled and a.args.base.hysteretic_state else 1
     s, lower, upper, step = jax.lax.fori_loop(
-        0, _NEWTON, iteration, (s, lower, upper, step), unroll=unroll
+        0, _NEWTON, iteration, (s, lower, upper, step)
     )
     t, y = a.t0 + s * h, evaluate(s)
     # Located as `simulate` locates events; else the lane retries (`_finish`).
@@ -605,7 +600,7 @@ class _ForceFree(AbstractIsolator):
         return self.base.free_vibration_bounds(state)
 
 
-def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes, unrolled):
+def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes):
     """`_locate` on a batch of lanes (leading axis; `valid`: real lanes).
 
     `sub.args.motion` is None: the lanes' motion is `motion`, batched as
@@ -628,7 +623,7 @@ def _locate_batch(sub: _Attempt, valid, opts, motion, motion_axes, unrolled):
     def locate(sub, motion, axes, unfired=()):
         def one(a, motion):
             a = eqx.tree_at(lambda a: a.args.motion, a, motion, is_leaf=is_none)
-            return _locate(a, opts, unfired, unrolled)
+            return _locate(a, opts, unfired)
 
         return jax.vmap(one, in_axes=(0, axes))(sub, motion)
 
@@ -709,14 +704,11 @@ def _rest_jumps(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts
     )
 
 
-def _end_lanes(
-    sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts, unrolled
-):
+def _end_lanes(sub_c, sub: _Attempt, valid, motion, motion_axes, duration, opts):
     """The new carries of a batch of lanes whose step does not only move on
     (`valid`: real lanes; `motion` batched as `motion_axes` says): their
-    events located (`unrolled`: see `_locate`), jumps, transitions, and next
-    steps."""
-    located = _locate_batch(sub, valid, opts, motion, motion_axes, unrolled)
+    events located, jumps, transitions, and next steps."""
+    located = _locate_batch(sub, valid, opts, motion, motion_axes)
     block, base = sub.args.block, sub.args.base
     jump = _rest_jumps(sub_c, sub, valid, motion, motion_axes, duration, opts)
     new = jax.vmap(_finish, in_axes=(0, 0, 0, 0, 0, 0, motion_axes, None, None))(
@@ -767,9 +759,7 @@ def flat_step(
     # The lanes' motion is gathered as `in_axes` says (a record is not copied).
     lanes_a = eqx.tree_at(lambda a: a.args.motion, a, None, is_leaf=is_none)
     motion_axes = in_axes[2]
-    end_lanes = functools.partial(
-        _end_lanes, duration=duration, opts=opts, unrolled=loop.newton_unrolled
-    )
+    end_lanes = functools.partial(_end_lanes, duration=duration, opts=opts)
     if loop.one_event_batch:
         ended = jax.lax.cond(
             jnp.any(ends),

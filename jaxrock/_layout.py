@@ -54,16 +54,10 @@ class Loop(NamedTuple):
             round trip to the host, and thousands of lanes end in a step), or
             gathered in batches of a few lanes (a CPU: no lane that moves on
             pays for a root find).
-        newton_unrolled: whether the Newton iterations that locate an event
-            on a base with a hysteretic state (a friction pendulum's z, costly
-            to evaluate) are unrolled: its maps run faster so, and its loop
-            compiles in 1.3-1.5 times as long as with the iterations in a
-            loop (which a first answer takes: `_programs.first_answer`).
     """
 
     lanes: int
     one_event_batch: bool
-    newton_unrolled: bool = True
 
 
 def map_devices(cells: int) -> list[jax.Device]:

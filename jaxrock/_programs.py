@@ -41,9 +41,7 @@ def first_answer():
     "Start-up"). On a base with a hysteretic state (a friction pendulum),
     whose analyses run long, only a chunk of at most
     `HYSTERETIC_LEVEL_0_CELLS` cells does (its run loses less than the
-    compile saves); a larger one keeps XLA's level. Either way its events'
-    Newton iterations are in a loop rather than unrolled
-    (`_layout.Loop.newton_unrolled`)."""
+    compile saves); a larger one keeps XLA's level."""
     global _FIRST_ANSWER
     before, _FIRST_ANSWER = _FIRST_ANSWER, True
     try:
@@ -72,9 +70,6 @@ def chunk_program(treedef, leaves, loop: _layout.Loop):
     platform = next(iter(leaves[0].devices())).platform
     cells = task.slenderness.shape[0]
     options = compiler_options(task.base, task.layout, _FIRST_ANSWER, platform, cells)
-    # A hysteretic base's Newton iterations in a loop compile faster.
-    if _FIRST_ANSWER and task.base.hysteretic_state:
-        loop = loop._replace(newton_unrolled=False)
     key = (treedef, specs, loop, json.dumps(options))
     with _PROGRAMS_LOCK:
         lock = _PROGRAM_LOCKS.setdefault(key, threading.Lock())

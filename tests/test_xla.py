@@ -149,7 +149,7 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
 ):
     """Within `first_answer`, a fixed base's loop compiles at XLA's backend
     optimization level 0 (a friction pendulum's too where its chunk is small,
-    else it keeps XLA's level; its events' Newton iterations not unrolled):
+    else it keeps XLA's level):
     another program than the default, giving the same map (but for the last
     bits at level 0). `jaxrock map` compiles a small map so; a larger one
     keeps the default."""
@@ -178,15 +178,15 @@ def test_a_first_answer_compiles_at_level_0_and_gives_the_same_map(
     np.testing.assert_array_equal(quick.impacts, default.impacts)
     np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
 
-    # A friction pendulum's small map: level 0, its Newton iterations in a
-    # loop; the same map but for the last bits.
+    # A friction pendulum's small map: level 0; the same map but for the
+    # last bits.
     lam, size = np.linspace(2.0, 6.0, 3), np.array([0.5, 2.0])
     default = jr.behavior_map(lam, size, fps, pulse, progress=False)
     before = set(_programs._PROGRAMS)
     with _programs.first_answer():
         quick = jr.behavior_map(lam, size, fps, pulse, progress=False)
     (key,) = set(_programs._PROGRAMS) - before
-    assert not key[2].newton_unrolled and f'"{level}": 0' in key[-1]
+    assert f'"{level}": 0' in key[-1]
     np.testing.assert_array_equal(quick.outcome, default.outcome)
     np.testing.assert_array_equal(quick.impacts, default.impacts)
     np.testing.assert_allclose(quick.max_rotation, default.max_rotation, rtol=1e-9)
