@@ -25,7 +25,7 @@ _TRACING = threading.Lock()
 # Whether chunk loops compile for a first answer (`first_answer`).
 _FIRST_ANSWER = False
 # The most cells of a chunk on a base with a hysteretic state whose loop
-# compiles at level 0 for a first answer: its compile takes about 3.6 s less
+# compiles at level 0 for a first answer: its compile takes about 2.5 s less
 # on two cores, and its run under a record about 27 ms a cell more.
 HYSTERETIC_LEVEL_0_CELLS = 64
 
