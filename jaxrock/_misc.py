@@ -167,9 +167,12 @@ def unbatched(name: str, module, result: str) -> None:
 def scale_factors(factor, name: str = "factor") -> np.ndarray:
     """Scale factors as an array of real numbers, each finite and > 0
     (`ValueError` naming `name` else: a string, a bool or None is refused,
-    not converted)."""
+    not converted). Traced factors (under `jax.jacfwd`) are returned as they
+    are, unchecked (`AbstractChecked.valid` covers them)."""
     if not is_real(factor):
         raise ValueError(f"`{name}` must be finite and > 0, got {factor!r}")
+    if isinstance(factor, jax.core.Tracer):
+        return jnp.asarray(factor, dtype=float)
     factor = np.asarray(factor, dtype=float)
     if factor.size == 0 or not np.all(np.isfinite(factor) & (factor > 0)):
         raise ValueError(f"`{name}` must be finite and > 0, got {factor.tolist()}")

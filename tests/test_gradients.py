@@ -237,3 +237,22 @@ def test_jacfwd_matches_differences_of_scipy_reference(name, lam, size, param):
     # The same functions as above (same block, base and San Fernando pulse).
     ad = _derivatives(name, x0)["max_rotation"]
     assert ad == pytest.approx(fd, rel=1e-4)
+
+
+def test_a_record_scaled_by_a_traced_factor_differentiates():
+    """`Record.scaled` takes a traced factor (under `jacfwd`) as it takes a
+    concrete one: its derivative is that of the record built with the
+    factor (`Record(samples, dt, factor=x)`)."""
+    t = np.arange(0.0, 2.0, 0.01)
+    record = jr.Record(4.0 * np.sin(2 * np.pi * t) * np.sin(np.pi * t / 2.0), 0.01)
+    block, base = jr.Block(3.0, 0.5), jr.LinearIsolator(2.0, 0.35, 0.5)
+
+    def peak(scaled):
+        return lambda x: jr.simulate(block, base, scaled(x)).max_base_displacement
+
+    via_scaled = jax.jacfwd(peak(record.scaled))(1.2)
+    via_factor = jax.jacfwd(peak(lambda x: jr.Record(record.samples, 0.01, factor=x)))(
+        1.2
+    )
+    assert float(via_scaled) > 0
+    assert float(via_scaled) == pytest.approx(float(via_factor), rel=1e-12)
