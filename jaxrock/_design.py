@@ -38,6 +38,10 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
     n_motions,), and the motions' `jax.vmap` in_axes. One record is shared by
     every lane; a suite's lanes read its records in place (`RecordSignal.row`)."""
     shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
+    if len(shape) > 1:
+        raise ValueError(
+            f"`blocks` must have one batch axis (n_blocks) or none, got shape {shape}"
+        )
     nb = int(np.prod(shape))
     of_suite = isinstance(motions, Record) and bool(motions.batch_shape)
     if of_suite:

@@ -326,6 +326,10 @@ def _tune(**overrides):
         (dict(init={}), "`init` must be a non-empty dict"),
         (dict(bounds={"period": (1.0, float("inf"))}), r"bounds\['period'\]"),
         (dict(make_base=lambda p: jr.FixedBase()), "`make_base` must return"),
+        (
+            dict(blocks=jr.Block(3.0 * jnp.ones((2, 2)), 0.5)),
+            r"`blocks` must have one batch axis \(n_blocks\) or none, got shape",
+        ),
         # An isolator that does not exist at an end of the bounds.
         (
             dict(bounds={"period": (0.0, 3.0)}),
