@@ -735,23 +735,11 @@ def fragility(
     states, parsed = _checked(measure, base, motions, slenderness, size, damage_states)
     members = int(np.prod(motions.batch_shape))
     names, labels = motions.names(), coordinates(base, motions)
-    described = motions.describe()
+    described = _described(motions, scales, levels, measure)
     motions, scales, levels = _scaled(
         motions, scales, levels, measure, slenderness, size
     )
-    if scales is not None:
-        described += f", at {scales.size} scales"
-    if levels is not None:
-        described += f", scaled to {levels.size} levels of {measure}"
-    im = _moving_measure(motions, measure, slenderness, size)
-    if levels is not None:
-        # Each stripe's records are scaled to its level: their measures equal
-        # it but for rounding (1 ulp), which must not order the analyses of
-        # one level (ties of a stripe, its binomial term).
-        im = np.broadcast_to(
-            levels.reshape((-1,) + (1,) * (len(motions.batch_shape) - 1)),
-            motions.batch_shape,
-        ).reshape(-1)
+    im = _measured(motions, levels, measure, slenderness, size)
     bm = behavior_map([slenderness], [size], base, motions, **map_options)
     return Fragility(
         **_fitted(bm, im, parsed),
@@ -768,6 +756,28 @@ def fragility(
         motion_names=names,
         damage_states=states,
     )
+
+
+def _described(motions, scales, levels, measure) -> str:
+    """The motions as given, and their scales or levels (`Fragility.motion`)."""
+    text = motions.describe()
+    if scales is not None:
+        text += f", at {np.size(scales)} scales"
+    if levels is not None:
+        text += f", scaled to {np.size(levels)} levels of {measure}"
+    return text
+
+
+def _measured(motions, levels, measure, slenderness, size) -> np.ndarray:
+    """The measure of each analysis. Of a multiple-stripe analysis, its
+    stripe's level: its records' measures equal it but for rounding (1 ulp),
+    which must not order the analyses of one level (ties of a stripe, its
+    binomial term)."""
+    if levels is None:
+        return _moving_measure(motions, measure, slenderness, size)
+    shape = motions.batch_shape
+    stripes = levels.reshape((-1,) + (1,) * (len(shape) - 1))
+    return np.broadcast_to(stripes, shape).reshape(-1)
 
 
 def _checked(measure, base, motions, slenderness, size, damage_states):
