@@ -166,17 +166,14 @@ def impact_friction(block: Block, base: AbstractIsolator):
 
 
 def in_stop(base_state, base):
-    """Whether the base is against its `stop` (past |u| = capacity, or on it
-    and moving out), for the stop's event condition of the segment that
-    starts in `base_state`; None without a stop."""
+    """Whether the base's `stop` pushes it (`Stop.margin` > 0), for the
+    stop's force and event condition of the segment that starts in
+    `base_state`; None without a stop. A located touch lies
+    `STOP_ROUNDING` past the margin's root (`condition_stop`), on the side
+    it moves to."""
     if base.stop is None:
         return None
-    u, u_dot = base_state[0], base_state[1]
-    gap = jnp.abs(u) - base.capacity
-    # A located touch lies within rounding of the gap: its side is the
-    # motion's.
-    near = STOP_ROUNDING * base.capacity
-    return jnp.where(u * u_dot > 0, gap >= -near, gap > near)
+    return base.stop.margin(base_state, base.capacity) > 0
 
 
 # Of the capacity: the width of the gap's rounding after a located touch.

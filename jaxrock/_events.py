@@ -225,9 +225,11 @@ def condition_slide(t, y, args: Args, **kwargs):
 
 
 def condition_stop(t, y, args: Args, **kwargs):
-    """|u| - capacity + d against the stop, capacity - |u| + d off it
-    (`in_stop`; m, d = `STOP_ROUNDING` capacity): <= 0 where the base meets
-    or leaves its stop, the kink of its force (isolators with a `stop`).
+    """m + d while the stop pushes, -m + d while it does not (`in_stop`;
+    m = `Stop.margin`, d = `STOP_ROUNDING` capacity, in m): <= 0 where the
+    stop starts or stops pushing, the kinks of its force (isolators with a
+    `stop`): where the base meets the gap, and where a damped stop's push
+    ends before the base is back at the gap (or starts again).
 
     Each touch is located d past it, so that the next segment's condition
     starts at 2d > 0, off the boundary: a base that leaves its stop and
@@ -235,9 +237,9 @@ def condition_stop(t, y, args: Args, **kwargs):
     rounding). Past the touch by d the stop's force differs by its
     dashpot's over a travel of d (1e-9 of the capacity) at most."""
     del t, kwargs
-    gap = jnp.abs(y[2][0]) - args.base.capacity
+    margin = args.base.stop.margin(y[2], args.base.capacity)
     near = STOP_ROUNDING * args.base.capacity
-    return jnp.where(args.in_stop, gap, -gap) + near
+    return jnp.where(args.in_stop, margin, -margin) + near
 
 
 def condition_flight(t, y, args: Args, **kwargs):

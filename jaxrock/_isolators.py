@@ -96,8 +96,9 @@ class Stop(AbstractChecked):
 
     def force(self, state, capacity, against=None):
         """F_s / M (m/s^2, signed as u: it pushes the base back) at the base
-        state (u, u', ...): against the stop (`against`; None: where
-        |u| > capacity), the spring's and the dashpot's push, at least 0."""
+        state (u, u', ...): against the stop (`against`; None: where it
+        pushes, `margin` > 0), the spring's and the dashpot's push, at
+        least 0."""
         u, u_dot = state[0], state[1]
         s = jnp.sign(u)
         d = jnp.abs(u) - capacity
@@ -105,6 +106,18 @@ class Stop(AbstractChecked):
         push = w * w * d + 2.0 * self.damping * w * s * u_dot
         against = d > 0 if against is None else against
         return jnp.where(against, s * jnp.maximum(push, 0.0), 0.0)
+
+    def margin(self, state, capacity):
+        """min(d, push / w^2) = d + min(0, 2 zeta d' / w) (m), with
+        d = |u| - capacity and push = w^2 d + 2 zeta w d': > 0 where the stop
+        pushes the base. Its force has a kink wherever this crosses 0: where
+        the base meets the gap (d = 0, d' > 0, the dashpot's force jumps),
+        and where the push ends while the base is still past the gap (a
+        damped stop does not pull) or starts again."""
+        u, u_dot = state[0], state[1]
+        w = 2.0 * jnp.pi / self.period
+        lead = 2.0 * self.damping / w * jnp.sign(u) * u_dot
+        return jnp.abs(u) - capacity + jnp.minimum(lead, 0.0)
 
 
 class AbstractIsolator(AbstractChecked):

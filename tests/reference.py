@@ -109,7 +109,9 @@ def simulate(
     `stop` = (D, T, zeta): past |u| = D the base compresses a stop, a spring
     and a dashpot of period T (s) and damping ratio zeta per unit total
     mass, which pushes it back with M (w^2 d + 2 zeta w d') (d = |u| - D,
-    w = 2 pi / T) and never pulls; the solves stop at |u| = D, both ways.
+    w = 2 pi / T) and never pulls; the solves stop wherever that push starts
+    or ends (its force's kinks): at |u| = D, and, with damping, where
+    w^2 d + 2 zeta w d' reaches 0 while |u| > D.
 
     Returns dict(outcome, max_rotation, max_base_displacement, impacts, uplift_time,
     impact_log, evaluations) with impact_log entries (theta_dot-, theta_dot+,
@@ -164,6 +166,24 @@ def simulate(
         w = 2 * math.pi / period
         push = w * w * d + 2 * zeta * w * math.copysign(1.0, u) * ud
         return math.copysign(M * max(push, 0.0), u)
+
+    def stop_margin(x):
+        """min(d, push / w^2) (m): > 0 where the stop pushes the base."""
+        gap, period, zeta = stop
+        w = 2 * math.pi / period
+        d = abs(x[2]) - gap
+        return min(d, d + 2 * zeta / w * math.copysign(1.0, x[2]) * x[3])
+
+    def stop_margin_rate(t, x, s):
+        """The rate of `stop_margin` at one of its roots: d' where d is the
+        smaller, else d' + 2 zeta d'' / w (the push's, over w^2)."""
+        gap, period, zeta = stop
+        w = 2 * math.pi / period
+        sign = math.copysign(1.0, x[2])
+        d, d_dot = abs(x[2]) - gap, sign * x[3]
+        if d <= d + 2 * zeta / w * d_dot:
+            return d_dot
+        return d_dot + 2 * zeta / w * sign * rhs(t, x, s)[3]
 
     def bouc_wen(x):
         Y, A, gam, bet, eta = base[4:]
@@ -365,7 +385,7 @@ def simulate(
                 # Just after a touch, its side (the solve starts on the root).
                 if t <= since[0] + 1e-9:
                     return since[1]
-                return abs(x[2]) - stop[0]
+                return stop_margin(x)
 
             touch.terminal, touch.direction = True, 0
             touch_index = len(events)
@@ -408,7 +428,8 @@ def simulate(
         max_th = max(max_th, abs(x[0]))
         if not (hit[0] or hit[1]):
             if touch_index is not None and len(sol.t_events[touch_index]):
-                outward = x[2] * x[3] > 0  # it enters the stop, else leaves it
+                # The push starts (the margin rises through 0), else it ends.
+                outward = stop_margin_rate(t, x, 0 if phase == "T" else s) > 0
                 last_touch[:] = [t, 1e-30 if outward else -1e-30]
                 # Entering, the dashpot's force jumps: a block at rest may
                 # uplift at once (its condition would start past its root).

@@ -172,6 +172,28 @@ def test_history_names_the_stop_and_gradients_go_through():
     assert float(slope) > 0  # a softer stop lets the base further in
 
 
+def test_a_damped_stop_s_push_ends_at_an_event_past_the_gap():
+    """A damped stop does not pull: its push w^2 d + 2 zeta w d' ends while
+    the base is still past the gap (d > 0), a kink of its force. A step ends
+    there (a `stop` event), where the push is 0 to the event's rounding, so
+    values and derivatives converge across it at the solver's order."""
+    capacity, period, zeta = 0.2, 0.1, 0.3
+    base = _isolator("linear", capacity=capacity, stop=jr.Stop(period, zeta))
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    h = jr.simulate(jr.Block(4.0, 1.0), base, pulse, history=True).history
+    w = 2 * np.pi / period
+    ends = 0
+    for t in np.array(h.event_times)[np.array(h.event_kinds) == "stop"]:
+        i = np.flatnonzero(np.asarray(h.t) == t)[0]
+        u, u_dot = h.u[i], h.u_dot[i]
+        d = abs(u) - capacity
+        if d > 1e-6 * capacity:  # not at the gap: the push's end
+            push = w * w * d + 2 * zeta * w * np.sign(u) * u_dot
+            assert abs(push) / w**2 < 1e-8 * capacity
+            ends += 1
+    assert ends >= 1
+
+
 @pytest.mark.parametrize(
     "build, message",
     [
