@@ -6,21 +6,49 @@ once complete: a full disk or an interruption leaves the earlier file, if any,
 and no half-written one.
 """
 
+import hashlib
 import os
+import re
 import shutil
+import socket
 import threading
 from pathlib import Path
 
+# This machine, in the names of temporary files (a folder may be shared by
+# several machines): 8 hexadecimal digits of its host name's digest.
+_HOST = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
+_OWNER = re.compile(rf"\.{_HOST}-(\d+)-\d+\.tmp(\.[^.]*)?$")
+
 
 def temporary(path: Path, tag: str = "tmp") -> Path:
-    """A name beside `path` for this process and thread, ending in the
-    suffix of `path`'s name in lower case (".npz" of "m.NPZ" and of ".npz"
-    alike): NumPy and matplotlib read the format from it, and NumPy appends
-    ".npz" to a name that does not end in it."""
-    owner = f"{os.getpid()}-{threading.get_ident()}"
+    """A name beside `path` for this machine, process and thread, ending in
+    the suffix of `path`'s name in lower case (".npz" of "m.NPZ" and of
+    ".npz" alike): NumPy and matplotlib read the format from it, and NumPy
+    appends ".npz" to a name that does not end in it."""
+    owner = f"{_HOST}-{os.getpid()}-{threading.get_ident()}"
     _, dot, ext = path.name.rpartition(".")
     suffix = f".{ext.lower()}" if dot else ""
     return path.with_name(f"{path.name}.{owner}.{tag}{suffix}")
+
+
+def remove_orphans(folder: Path) -> None:
+    """Remove the temporary files in `folder` (`temporary`) that a process
+    of this machine left when it was killed mid-write: those whose process
+    is gone. Another machine's, or a live process's, are left alone."""
+    for path in folder.glob("*.tmp*"):
+        match = _OWNER.search(path.name)
+        if match is not None and not _alive(int(match.group(1))):
+            _remove(path)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process (PermissionError), or unknown
+        return True
+    return True
 
 
 def atomic_write(path, write) -> None:

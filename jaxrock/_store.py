@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import atomic_write
+from ._files import atomic_write, remove_orphans
 
 _HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 # What reading a damaged .npz raises (truncated, corrupt, an array missing).
@@ -27,11 +27,13 @@ class ChunkStore:
     order in which the first run dealt the cells to the chunks, `pilots.npz`
     the pilots' lane-step counts. Files are written under a temporary name and
     renamed (`_files.atomic_write`): an interruption or a full disk leaves no
-    half file. A file that cannot be read (truncated, corrupt) or whose arrays
-    disagree counts as missing and is computed again, with a warning naming
-    it. A manifest that is not a JSON object, or that names another map in
-    a folder of this map's files, is damaged and written again (a warning
-    says so); another map's chunks are still refused by their digests.
+    half file, and the temporary file of a process killed mid-write is
+    removed when the store is next opened on the same machine. A file that
+    cannot be read (truncated, corrupt) or whose arrays disagree counts as
+    missing and is computed again, with a warning naming it. A manifest that
+    is not a JSON object, or that names another map in a folder of this
+    map's files, is damaged and written again (a warning says so); another
+    map's chunks are still refused by their digests.
     """
 
     def __init__(self, folder, key: str, arrays: tuple[str, ...]):
@@ -47,6 +49,7 @@ class ChunkStore:
                     )
                 break
         self.folder.mkdir(parents=True, exist_ok=True)
+        remove_orphans(self.folder)
         self.arrays = arrays
         self.digest = hashlib.sha256(key.encode()).hexdigest()
         manifest = self.folder / "manifest.json"

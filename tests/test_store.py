@@ -5,6 +5,8 @@ chunks, manifest and pilots' counts, a full disk) and `BehaviorMap.save` /
 import errno
 import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 
 import jaxrock as jr
 from jaxrock import _maps
+from jaxrock._files import temporary
 from jaxrock._store import ChunkStore
 
 PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
@@ -101,6 +104,24 @@ def test_store_recomputes_a_truncated_chunk(tmp_path, linear_map):
     for k in ("outcome", "impacts", "status", "max_rotation"):
         np.testing.assert_array_equal(getattr(again, k), getattr(linear_map, k))
     assert chunk.stat().st_size > 100  # written again, whole
+
+
+def test_a_store_removes_what_a_killed_write_left(tmp_path):
+    """A process killed mid-write leaves its temporary chunk file; opening
+    the store on the same machine removes it, but not the temporary file of
+    a live process or of another machine (a shared folder)."""
+    finished = subprocess.Popen([sys.executable, "-c", "pass"])
+    finished.wait()
+    chunk = tmp_path / "chunk_000001.npz"
+    mine = temporary(chunk)
+    orphan = mine.with_name(mine.name.replace(f"-{os.getpid()}-", f"-{finished.pid}-"))
+    host = mine.name.split(".")[-3].split("-")[0]
+    elsewhere = orphan.with_name(orphan.name.replace(host, "0" * len(host)))
+    for path in (mine, orphan, elsewhere):
+        path.write_bytes(b"PK")  # a zip's first bytes, cut short
+    ChunkStore(tmp_path, "{}", ())
+    assert mine.exists() and elsewhere.exists()
+    assert not orphan.exists()
 
 
 def test_store_deals_a_rerun_as_its_first_run(tmp_path, linear_map):
