@@ -733,8 +733,8 @@ def fragility(
         ...                     scales=[0.2, 0.5, 1.0, 1.5])  # doctest: +SKIP
     """
     states, parsed = _checked(measure, base, motions, slenderness, size, damage_states)
-    members = int(np.prod(motions.batch_shape))
-    names, labels = motions.names(), coordinates(base, motions)
+    sources, names = _sources(motions)
+    labels = coordinates(base, motions)
     described = _described(motions, scales, levels, measure)
     motions, scales, levels = _scaled(
         motions, scales, levels, measure, slenderness, size
@@ -752,10 +752,27 @@ def fragility(
         scales=scales,
         levels=levels,
         coordinates=labels,
-        motion_index=np.arange(bm.outcome.size) % members,
+        motion_index=np.tile(sources, bm.outcome.size // sources.size),
         motion_names=names,
         damage_states=states,
     )
+
+
+def _sources(motions) -> tuple[np.ndarray, tuple | None]:
+    """(the motion of the ensemble each of `motions` is, flattened; the
+    records' names, or None): a suite scaled beforehand (`Record.scaled`,
+    its factors' axes first) is its records at each factor, whose analyses
+    a bootstrap draws together; any other motion is its own."""
+    shape, names = motions.batch_shape, motions.names()
+    if not isinstance(motions, Record):
+        return np.arange(int(np.prod(shape))), names
+    records = np.shape(motions.unscaled)[:-1]
+    index = np.arange(int(np.prod(records))).reshape(records)
+    sources = np.broadcast_to(index, shape).ravel()
+    if names is not None:  # one per record, from its first motion
+        first = np.unique(sources, return_index=True)[1]
+        names = tuple(names[i] for i in first)
+    return sources, names
 
 
 def _described(motions, scales, levels, measure) -> str:

@@ -350,6 +350,27 @@ def test_a_bootstrap_band_over_records_holds_the_fit():
         frag.confidence_band(level=1.5)
 
 
+def test_a_suite_scaled_beforehand_is_bootstrapped_by_its_records():
+    """A suite scaled before `fragility` (`Record.scaled`) is its records at
+    each factor: the bootstrap draws a record's analyses together, as it
+    does for the same suite given with `scales`, not each (factor, record)
+    pair as a motion of its own (a band too narrow)."""
+    suite = jr.Record.stack(jr.records.fema_p695()[:4])
+    factors = np.array([0.5, 1.0, 2.0, 4.0])
+    given = jr.fragility(4.0, 1.0, jr.FixedBase(), suite, scales=factors)
+    before = jr.fragility(4.0, 1.0, jr.FixedBase(), suite.scaled(factors))
+    np.testing.assert_array_equal(before.motion_index, np.tile(np.arange(4), 4))
+    np.testing.assert_array_equal(before.motion_index, given.motion_index)
+    assert before.motion_names == given.motion_names == suite.names()
+    np.testing.assert_array_equal(before.overturned, given.overturned)
+    np.testing.assert_allclose(before.im, given.im, rtol=1e-14)
+    a = given.confidence_band("rocking", samples=50, seed=3)
+    b = before.confidence_band("rocking", samples=50, seed=3)
+    assert a.fitted == b.fitted >= 40 and a.median[0] < a.median[1]
+    np.testing.assert_allclose(b.median, a.median, rtol=1e-9)
+    np.testing.assert_allclose(b.upper, a.upper, atol=1e-9)
+
+
 def test_a_stripe_s_ties_are_not_broken_by_rounding():
     """The measures of a stripe's records, each scaled to the level, are
     its level: 1 ulp of rounding in own * (level / own) must not order them.
