@@ -823,6 +823,8 @@ class SphericalRollingIsolator(AbstractClosedFormBoucWen):
     the one-degree-of-freedom reduction of the rolling isolation systems
     that Harvey and Gavin model (balls in shallow bowls, whose profile h(u)
     gives the restoring force M g dh/du), without the platform's rotation.
+    The balls cannot pass |u| = R (`geometric_limit`: CAPACITY_EXCEEDED); a
+    real dish's rim is nearer, a `capacity`.
 
     Args:
         radius: R, the radius of the path of the balls' centres (m), > 0.
@@ -878,6 +880,12 @@ class SphericalRollingIsolator(AbstractClosedFormBoucWen):
     @property
     def strength_per_mass(self):
         return self.rolling_resistance * GRAVITY
+
+    @property
+    def geometric_limit(self):
+        # The balls' centres move on a circle of radius R: |u| < R (a real
+        # dish far less), and K u = M g u / R assumes |u| << R.
+        return self.radius
 
 
 class ConicalRollingIsolator(AbstractClosedFormBoucWen):

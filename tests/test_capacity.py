@@ -97,23 +97,30 @@ def test_cli_capacity_is_checked(capsys):
     assert "--capacity: must be finite and > 0" in capsys.readouterr().err
 
 
-def test_a_friction_pendulum_past_its_radius_exceeds_its_capacity():
-    """A friction pendulum's slider cannot pass the radius R of its dish: an
-    analysis whose max |u| reaches R ends CAPACITY_EXCEEDED, with or without
-    a `capacity`, where one that stays within R is SUCCESS."""
+@pytest.mark.parametrize(
+    "dish",
+    [
+        lambda radius, **kw: jr.FrictionPendulum(0.05, radius, 0.5, **kw),
+        lambda radius, **kw: jr.SphericalRollingIsolator(radius, 0.005, 0.5, **kw),
+    ],
+    ids=["friction pendulum", "spherical rolling"],
+)
+def test_a_dish_s_slider_past_its_radius_exceeds_its_capacity(dish):
+    """A friction pendulum's slider, or a rolling isolator's balls, cannot
+    pass the radius R of their path: an analysis whose max |u| reaches R
+    ends CAPACITY_EXCEEDED, with or without a `capacity`, where one that
+    stays within R is SUCCESS."""
     samples = np.zeros(400)
     samples[100:102], samples[102:104] = 30.0, -30.0  # a 0.04 s kick, m/s^2
     kick = jr.Record(samples, 0.01)
     block = jr.Block(1.5, 1.0)  # too stocky to uplift on a friction pendulum
-    wide = jr.simulate(block, jr.FrictionPendulum(0.05, 2.0, 0.5), kick)
+    wide = jr.simulate(block, dish(2.0), kick)
     assert wide.status == jr.Status.SUCCESS
     assert 0.0 < float(wide.max_base_displacement) < 0.5
     radius = 0.5 * float(wide.max_base_displacement)
     for capacity in (None, 10.0):
-        narrow = jr.simulate(
-            block, jr.FrictionPendulum(0.05, radius, 0.5, capacity=capacity), kick
-        )
+        narrow = jr.simulate(block, dish(radius, capacity=capacity), kick)
         assert narrow.status == jr.Status.CAPACITY_EXCEEDED
         assert float(narrow.max_base_displacement) >= radius
-    assert jr.FrictionPendulum(0.05, 2.0, 0.5).geometric_limit == 2.0
+    assert dish(2.0).geometric_limit == 2.0
     assert jr.LinearIsolator(2.0, 0.35, 0.5).geometric_limit is None
