@@ -165,7 +165,9 @@ def overturning_spectrum(
     outcome = bm.outcome.reshape(F.shape)
     status = bm.status.reshape(F.shape)
     over = (outcome == Outcome.OVERTURNED) & (status == Status.SUCCESS)
-    minimum = np.where(over.any(axis=1), ar[np.argmax(over, axis=1)], np.nan)
+    # The lowest overturning amplitude, whatever the order of the axis.
+    lowest = np.where(over, ar[None, :], np.inf).min(axis=1)
+    minimum = np.where(np.isfinite(lowest), lowest, np.nan)
     return OverturningSpectrum(
         frequency_ratio=fr,
         amplitude_ratio=ar,

@@ -94,3 +94,13 @@ def test_the_linearized_amplitude_of_a_long_pulse_does_not_overflow():
         warnings.simplefilter("error")
         psi = jr.linearized_overturning_amplitude(np.array([0.005, 0.05, 0.5]))
     assert np.all(np.isfinite(psi)) and 1.0 < psi[0] <= psi[1] < psi[2]
+
+
+def test_minimum_is_the_lowest_whatever_the_order_of_the_axis(fixed_spectrum):
+    """`minimum` is the least overturning amplitude ratio of the grid, not the
+    first in the order given: a reversed axis gives the same edge."""
+    reversed_ = jr.overturning_spectrum(
+        BLOCK, jr.FixedBase(), FREQ, AMP[::-1], progress=False
+    )
+    np.testing.assert_array_equal(reversed_.outcome, fixed_spectrum.outcome[:, ::-1])
+    np.testing.assert_array_equal(reversed_.minimum, fixed_spectrum.minimum)
