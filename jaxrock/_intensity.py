@@ -89,12 +89,15 @@ def measure_attrs(measure: str) -> dict:
 
 def _pulse_peaks(motion: AbstractGroundMotion):
     """(PGA m/s^2, PGV m/s) of each pulse of a batch, flat, from its closed
-    forms on `_PULSE_POINTS` points from its start to its end."""
+    forms on `_PULSE_POINTS` points from its start (or t = 0, where the
+    analyses start, if it starts before) to its end."""
     shape = motion.batch_shape
     flat = jax.tree_util.tree_map(
         lambda x: jnp.broadcast_to(x, shape).reshape(-1), motion
     )
-    start = np.reshape(np.asarray(flat.start_time), -1)
+    # From t = 0, where the analyses (and the other measures' samples) start:
+    # a pulse may begin before it (t0 > -gamma / (2 f_p)).
+    start = np.maximum(np.reshape(np.asarray(flat.start_time), -1), 0.0)
     stop = np.reshape(np.asarray(flat.end_time), -1)
     fraction = np.linspace(0.0, 1.0, _PULSE_POINTS)
     t = jnp.asarray(start[:, None] + (stop - start)[:, None] * fraction)

@@ -248,3 +248,20 @@ def test_pulse_period_of_pulses_and_records():
     assert float(jr.intensity_measure(shaken, "tp")) == pytest.approx(1 / 0.68)
     with pytest.raises(ValueError, match="'tp' needs a pulse"):
         jr.intensity_measure(jr.WithVertical(shaken, pulse), "tp")
+
+
+def test_peaks_of_a_pulse_that_starts_before_t0_are_those_from_t0():
+    """A pulse may start before t = 0 (t0 > -gamma / (2 f_p)); the analyses,
+    and the measures read from its samples, start at t = 0: PGA and PGV are
+    those of its part from t = 0 too, not of the part no analysis sees."""
+    pulse = jr.MPPulse(0.5, 1.0, 2.0, 0.0, t0=-0.5)  # from -1.5 s to 0.5 s
+    t = np.linspace(0.0, float(pulse.end_time), 200_001)
+    acc = np.abs(np.asarray(pulse.acceleration(t)))
+    vel = np.abs(np.asarray(pulse.velocity(t)))
+    pga = float(jr.intensity_measure(pulse, "pga"))
+    pgv = float(jr.intensity_measure(pulse, "pgv"))
+    np.testing.assert_allclose(pga, acc.max(), rtol=1e-6)
+    np.testing.assert_allclose(pgv, vel.max(), rtol=1e-6)
+    # A pulse that starts at t = 0 keeps its whole closed-form peaks.
+    whole = jr.MPPulse(0.5, 1.0, 2.0, 0.0)
+    assert float(jr.intensity_measure(whole, "pgv")) == pytest.approx(0.5, rel=1e-9)
