@@ -294,7 +294,24 @@ def check_damage_states(states, slenderness, base) -> tuple[tuple, tuple]:
                 f"`damage_states`: {name!r} is a displacement of the isolator, "
                 "and a FixedBase does not move"
             )
+        reach = None if kind != "displacement" else _displacement_reach(base)
+        if reach is not None and threshold > reach:
+            raise ValueError(
+                f"`damage_states`: {name!r} is beyond the isolator's reach: an "
+                f"analysis whose max |u| reaches {reach:g} m (its capacity "
+                "without a stop, or its geometric limit) ends CAPACITY_EXCEEDED, "
+                "and its max |u| past that is the unbounded model's; give "
+                f"D <= {reach:g} m (or a `stop` at the capacity)"
+            )
     return names, tuple(parsed)
+
+
+def _displacement_reach(base: AbstractIsolator) -> float | None:
+    """The |u| (m) past which an analysis of `base` ends CAPACITY_EXCEEDED
+    (its capacity without a stop, its geometric limit), or None."""
+    limits = [base.geometric_limit, base.capacity if base.stop is None else None]
+    values = [float(np.max(x)) for x in limits if x is not None]
+    return min(values) if values else None
 
 
 def _exceeded(parsed, outcome, max_rotation, max_base_displacement):

@@ -412,3 +412,39 @@ def test_a_bootstrap_over_one_motion_is_refused():
     assert frag.rocked.any() and not frag.rocked.all()
     with pytest.raises(ValueError, match="at least 2 motions"):
         frag.confidence_band("rocking")
+
+
+@pytest.mark.parametrize(
+    "base, refused",
+    [
+        (jr.LinearIsolator(2.0, 0.35, 0.5, capacity=0.1), True),
+        # With a stop the base's motion past the capacity is modelled.
+        (jr.LinearIsolator(2.0, 0.35, 0.5, capacity=0.1, stop=jr.Stop(0.05)), False),
+        (jr.FrictionPendulum(0.11, 0.25, 0.5), True),  # the dish's radius R
+        (jr.LinearIsolator(2.0, 0.35, 0.5), False),
+    ],
+)
+def test_a_displacement_state_beyond_the_capacity_is_refused(
+    base, refused, monkeypatch
+):
+    """Past its capacity (without a stop) or its geometric limit an analysis
+    ends CAPACITY_EXCEEDED and its max |u| is the unbounded model's: a
+    displacement state beyond it would be fitted on displacements the base
+    cannot reach."""
+    from jaxrock import _fragility
+
+    class Ran(Exception):
+        pass
+
+    def no_map(*args, **kwargs):
+        raise Ran
+
+    monkeypatch.setattr(_fragility, "behavior_map", no_map)
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    states = ["displacement:0.1", "displacement:0.3"]
+    if refused:
+        with pytest.raises(ValueError, match="'displacement:0.3' is beyond the"):
+            jr.fragility(4.0, 1.0, base, pulse, scales=[1.0, 2.0], damage_states=states)
+    else:
+        with pytest.raises(Ran):
+            jr.fragility(4.0, 1.0, base, pulse, scales=[1.0, 2.0], damage_states=states)
