@@ -44,6 +44,15 @@ def _number(name: str, value, low=0.0) -> float:
     return x
 
 
+def _key_in(key, table) -> bool:
+    """Whether `key` is a key of `table` (False for an unhashable one, such
+    as a list)."""
+    try:
+        return key in table
+    except TypeError:
+        return False
+
+
 def asce7_spectrum(periods, sds: float, sd1: float, tl: float) -> np.ndarray:
     """The ASCE 7-22 design response spectrum (Sec. 11.4.6), Sa in g.
 
@@ -127,9 +136,9 @@ def eurocode8_spectrum(
     """
     periods = _check_periods(periods)
     ag = _number("ag", ag)
-    if isinstance(spectrum_type, bool) or spectrum_type not in _EUROCODE8:
+    if isinstance(spectrum_type, bool) or not _key_in(spectrum_type, _EUROCODE8):
         raise ValueError(f"`spectrum_type` must be 1 or 2, got {spectrum_type!r}")
-    if ground_type not in _EUROCODE8[spectrum_type]:
+    if not _key_in(ground_type, _EUROCODE8[spectrum_type]):
         raise ValueError(
             f"`ground_type` must be one of A, B, C, D, E, got {ground_type!r}"
         )

@@ -778,7 +778,7 @@ def _run_response_spectrum(a) -> int:
         k = int(np.argmax(s.pseudo_acceleration))
         print(
             f"{label}: peak PSA {s.pseudo_acceleration[k]:.4g} m/s^2 at "
-            f"T = {s.periods[k]:.3g} s ({a.damping:.0%} damping)"
+            f"T = {s.periods[k]:.3g} s ({100 * a.damping:g}% damping)"
         )
     if csv is not None:
         header = ["period (s)"] + [
@@ -1255,6 +1255,12 @@ def _on_host():
 
 
 def _run_fragility(a) -> int:
+    if a.levels is not None and a.scale != 1.0:
+        # Each record is scaled to every level: a factor on it cancels out.
+        raise ValueError(
+            "--scale has no effect with --levels (each record is scaled to every "
+            "level of --measure); leave it out"
+        )
     out, motion, base, name = _analysis(a)
     import jaxrock as jr
     from jaxrock import plot

