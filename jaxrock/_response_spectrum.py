@@ -10,10 +10,13 @@ from ._ground import AbstractGroundMotion
 from ._misc import check, grid_axis
 from ._record import Record, component, is_vertical
 
-# A closed-form pulse is sampled every min(_PULSE_STEP, shortest period /
-# _PULSE_POINTS) s: its piecewise-linear interpolant then departs from it by
-# less than 1e-5 of its amplitude.
+# A closed-form pulse is sampled every min(_PULSE_STEP, its `max_step` /
+# _PULSE_SUBSTEPS) s (and, for a spectrum, at most the shortest period /
+# _PULSE_POINTS): with `max_step` 1/32 of its cycle, 800 samples a cycle keep
+# its piecewise-linear interpolant within (2 pi / 800)^2 / 8 < 1e-5 of its
+# amplitude, whatever its frequency.
 _PULSE_STEP = 1e-3
+_PULSE_SUBSTEPS = 25
 _PULSE_POINTS = 50
 # Gauss-Legendre nodes per panel of the input coefficients' integrals, and the
 # largest omega h of a panel: the integrands are entire, and 16 nodes over
@@ -60,8 +63,9 @@ class MotionSamples(eqx.Module):
 def motion_samples(motion: AbstractGroundMotion, step=None, tail=0.0):
     """The samples of `motion` (`MotionSamples`): a record's own (a suite's
     rows, each scaled member reading its row times its factor); a closed-form
-    pulse's on a grid of `step` s (default `_PULSE_STEP`) from t = 0 to its
-    end plus `tail` s, where it is zero."""
+    pulse's on a grid of min(`step` (default `_PULSE_STEP`), its `max_step`
+    / `_PULSE_SUBSTEPS`) s from t = 0 to its end plus `tail` s, where it is
+    zero."""
     if not isinstance(motion, AbstractGroundMotion):
         raise ValueError(
             f"`motion` must be a ground motion (a Record or a pulse), got "
@@ -88,18 +92,23 @@ def motion_samples(motion: AbstractGroundMotion, step=None, tail=0.0):
             factor=factor,
             batch_shape=batch,
         )
-    step = _PULSE_STEP if step is None else float(step)
     flat = jax.tree_util.tree_map(
         lambda x: jnp.broadcast_to(x, batch).reshape(-1), motion
     )
     end = np.reshape(np.asarray(flat.end_time), -1) + tail
+    limit = flat.max_step  # None: a motion without a step limit
+    own = np.inf if limit is None else np.reshape(limit, -1) / _PULSE_SUBSTEPS
+    step = np.minimum(_PULSE_STEP if step is None else float(step), own)
+    step = np.broadcast_to(step, end.shape)
     length = np.floor(end / step).astype(int) + 2
-    t = step * np.arange(int(length.max()))
-    rows = np.asarray(jax.vmap(lambda m: m.acceleration(jnp.asarray(t)))(flat))
+    index = jnp.arange(int(length.max()))
+    rows = np.asarray(
+        jax.vmap(lambda m, h: m.acceleration(h * index))(flat, jnp.asarray(step))
+    )
     members = rows.shape[0]
     return MotionSamples(
         rows=rows,
-        dt=np.full(members, step),
+        dt=step.astype(float),
         length=length,
         row=np.arange(members),
         factor=np.ones(members),

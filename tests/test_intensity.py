@@ -265,3 +265,22 @@ def test_peaks_of_a_pulse_that_starts_before_t0_are_those_from_t0():
     # A pulse that starts at t = 0 keeps its whole closed-form peaks.
     whole = jr.MPPulse(0.5, 1.0, 2.0, 0.0)
     assert float(jr.intensity_measure(whole, "pgv")) == pytest.approx(0.5, rel=1e-9)
+
+
+@pytest.mark.parametrize("frequency", [0.5, 5.0, 50.0])
+def test_a_sine_pulse_s_measures_are_its_closed_forms_at_any_frequency(frequency):
+    """x_g'' = a sin(2 pi f t) over one cycle: PGD = a / (2 pi f^2),
+    CAV = 2 a / (pi f), Arias = pi a^2 / (4 g f). The pulse is sampled
+    finely enough for its own frequency (800 samples a cycle at least), not
+    on a fixed grid that a short pulse falls through."""
+    a = 3.0
+    pulse = jr.SinePulse(a, frequency)
+    exact = {
+        "pgd": a / (2 * np.pi * frequency**2),
+        "cav": 2 * a / (np.pi * frequency),
+        "arias": np.pi * a**2 / (4 * 9.81 * frequency),
+    }
+    for name, value in exact.items():
+        assert float(jr.intensity_measure(pulse, name)) == pytest.approx(
+            value, rel=2e-5
+        ), name
