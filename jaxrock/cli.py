@@ -117,9 +117,10 @@ def _range(text: str):
         raise argparse.ArgumentTypeError(
             f"START and STOP must be finite numbers, got {text!r}"
         )
-    if n < 1 or not (start > 0 and stop >= start):
+    if n < 1 or not (start > 0 and stop >= start) or (stop == start and n > 1):
         raise argparse.ArgumentTypeError(
-            f"need 0 < START <= STOP and N >= 1, got {text!r}"
+            "need 0 < START <= STOP and N >= 1, and N = 1 where START = STOP "
+            f"(one value), got {text!r}"
         )
     if n > MAX_POINTS:
         raise argparse.ArgumentTypeError(

@@ -679,6 +679,7 @@ def test_cli_response_spectrum_writes_the_spectra(tmp_path, capsys):
     "argv, message",
     [
         (["RSN.AT2", "--periods", "0:1:3"], "--periods: need 0 < START"),
+        (["RSN.AT2", "--periods", "1:1:3"], "N = 1 where START = STOP"),
         (["RSN.AT2", "--damping", "1"], "--damping: must be >= 0 and < 1"),
         (["RSN.AT2", "--rotd50"], "--rotd50 takes the two horizontal components"),
         (["missing.AT2"], "RECORD: no such file: missing.AT2"),
