@@ -10,7 +10,7 @@ import numpy as np
 
 from ._files import atomic_write
 from ._labeled import ATTRS, Coordinates, dataset, read, suffix, write
-from ._misc import is_count
+from ._misc import counted, is_count
 from ._results import RESPONSE_FIELDS, Outcome, Status
 
 _FIELDS = RESPONSE_FIELDS
@@ -175,7 +175,8 @@ class BehaviorMap(eqx.Module):
         """
         c = self.counts()
         text = (
-            f"{self.outcome.size} analyses in {self.seconds:.2f} s: "
+            f"{counted(self.outcome.size, 'analysis', 'analyses')} in "
+            f"{self.seconds:.2f} s: "
             f"{c['no_rocking']} no rocking, {c['rocking']} rocking, "
             f"{c['overturned']} overturned"
         )

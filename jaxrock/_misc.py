@@ -295,6 +295,11 @@ def computed_once(tree):
     return jax.tree_util.tree_map(once, tree)
 
 
+def counted(n: int, one: str, many: str) -> str:
+    """n and the noun for it: "1 analysis", "4 analyses"."""
+    return f"{n} {one if n == 1 else many}"
+
+
 def turned_off(setting: str) -> bool:
     """Whether an environment variable's value turns a feature off: "off",
     "0", "none", "false" or "no", in any case."""

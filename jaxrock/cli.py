@@ -1208,7 +1208,7 @@ def _run_spectrum(a) -> int:
     for s in spectra:
         print(
             f"{s.base}: minimum a_p / (g tan alpha) = "
-            + " ".join(f"{m:.3g}" for m in s.minimum)
+            + " ".join("none" if m != m else f"{m:.3g}" for m in s.minimum)
             + _not_counted(s.status, "not counted")
         )
     _save(plot.overturning_spectrum(spectra).figure, out)
@@ -1266,6 +1266,7 @@ def _run_fragility(a) -> int:
     import jaxrock as jr
     from jaxrock import plot
     from jaxrock._fragility import check_damage_states
+    from jaxrock._misc import counted
 
     check_damage_states(a.damage_states, a.slenderness, base)
     if a.scales is not None and a.levels is not None:
@@ -1288,7 +1289,8 @@ def _run_fragility(a) -> int:
         friction=a.block_friction,
     )
     print(
-        f"{frag.im.size} analyses: {int(frag.rocked.sum())} rocked, "
+        f"{counted(frag.im.size, 'analysis', 'analyses')}: "
+        f"{int(frag.rocked.sum())} rocked, "
         f"{int(frag.overturned.sum())} overturned"
         + _not_counted(frag.status, "not fitted")
         + f"; median {a.measure} "

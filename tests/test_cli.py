@@ -456,7 +456,7 @@ def test_cli_fragility_of_one_scale(tmp_path, capsys):
     argv = ["fragility", "--base", "fixed", "--scales", "1:1:1", "--out", str(out)]
     assert main(argv) == 0
     assert out.exists()
-    assert "1 analyses" in capsys.readouterr().out
+    assert "1 analysis: " in capsys.readouterr().out
 
 
 def test_cli_fragility_names_the_analyses_it_does_not_fit(tmp_path, capsys):
@@ -467,7 +467,7 @@ def test_cli_fragility_names_the_analyses_it_does_not_fit(tmp_path, capsys):
     assert main(argv + ["--scales", "1:1:1", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert (
-        "1 analyses: 1 rocked, 1 overturned, 1 CAPACITY_EXCEEDED (not fitted)" in text
+        "1 analysis: 1 rocked, 1 overturned, 1 CAPACITY_EXCEEDED (not fitted)" in text
     )
 
 
