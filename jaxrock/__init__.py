@@ -23,11 +23,11 @@ configuration page says what each does and how to opt out):
   has computed before the import.
 """
 
-import importlib.metadata
+import importlib.metadata as _metadata
 
-import jax
+import jax as _jax
 
-jax.config.update("jax_enable_x64", True)
+_jax.config.update("jax_enable_x64", True)
 
 from ._xla import compile_loops_whole, control_flow_as_gpu_graphs  # noqa: E402
 
@@ -145,4 +145,4 @@ from ._spectrum import (  # noqa: E402
 from ._spectrum import overturning_spectrum as overturning_spectrum
 from ._vertical import WithVertical as WithVertical
 
-__version__ = importlib.metadata.version("jaxrock")
+__version__ = _metadata.version("jaxrock")
