@@ -285,6 +285,32 @@ class _Given(argparse.Action):
         namespace.given = getattr(namespace, "given", frozenset()) | {self.dest}
 
 
+# The bases' parameters on the command line: (option, default, help).
+_BASE_PARAMETERS = [
+    ("--period", 2.0, "T_s, isolation period (s), linear; period of K (s), bilinear"),
+    (
+        "--strength",
+        0.06,
+        "Q / Mg, characteristic strength over the weight, bilinear",
+    ),
+    ("--yield-displacement", 0.015, "Y, yield displacement (m), bilinear"),
+    (
+        "--rolling-resistance",
+        0.005,
+        "mu_r, rolling resistance coefficient, rolling-sphere and rolling-cone",
+    ),
+    ("--slope", 0.1, "s, the cone's slope, rolling-cone"),
+    ("--damping", 0.35, "xi, damping ratio, linear"),
+    ("--friction", 0.11, "mu, friction coefficient, fps"),
+    (
+        "--radius",
+        2.24,
+        "R, radius of curvature (m), fps; of the balls' path (m), rolling-sphere",
+    ),
+    ("--mass-ratio", 0.5, "m / m_b, block mass over base mass, isolated bases"),
+]
+
+
 def _add_base_options(q, out: str, compare: str) -> None:
     """--base and its parameters, then --out (default `out`); `compare` ends the
     help of --base."""
@@ -299,69 +325,8 @@ def _add_base_options(q, out: str, compare: str) -> None:
         help=f"base to analyse: {', '.join(described[:-1])} or {described[-1]}"
         f"{compare}",
     )
-    q.add_argument(
-        "--period",
-        type=float,
-        action=_Given,
-        default=2.0,
-        help="T_s, isolation period (s), linear; period of K (s), bilinear",
-    )
-    q.add_argument(
-        "--strength",
-        type=float,
-        action=_Given,
-        default=0.06,
-        help="Q / Mg, characteristic strength over the weight, bilinear",
-    )
-    q.add_argument(
-        "--yield-displacement",
-        type=float,
-        action=_Given,
-        default=0.015,
-        help="Y, yield displacement (m), bilinear",
-    )
-    q.add_argument(
-        "--rolling-resistance",
-        type=float,
-        action=_Given,
-        default=0.005,
-        help="mu_r, rolling resistance coefficient, rolling-sphere and rolling-cone",
-    )
-    q.add_argument(
-        "--slope",
-        type=float,
-        action=_Given,
-        default=0.1,
-        help="s, the cone's slope, rolling-cone",
-    )
-    q.add_argument(
-        "--damping",
-        type=float,
-        action=_Given,
-        default=0.35,
-        help="xi, damping ratio, linear",
-    )
-    q.add_argument(
-        "--friction",
-        type=float,
-        action=_Given,
-        default=0.11,
-        help="mu, friction coefficient, fps",
-    )
-    q.add_argument(
-        "--radius",
-        type=float,
-        action=_Given,
-        default=2.24,
-        help="R, radius of curvature (m), fps; of the balls' path (m), rolling-sphere",
-    )
-    q.add_argument(
-        "--mass-ratio",
-        type=float,
-        action=_Given,
-        default=0.5,
-        help="m / m_b, block mass over base mass, isolated bases",
-    )
+    for option, default, text in _BASE_PARAMETERS:
+        q.add_argument(option, type=float, action=_Given, default=default, help=text)
     q.add_argument(
         "--capacity",
         type=_positive_float,
