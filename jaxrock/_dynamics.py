@@ -45,12 +45,15 @@ class Args(eqx.Module):
     # The block slid already (its slide condition is disarmed); None: the
     # block has no `friction`.
     slid: jnp.ndarray | None = None
-    # The base is against its stop (`in_stop`); None: the base has none.
+    # The stop pushes the base (`in_stop`); None: the base has no stop.
     in_stop: jnp.ndarray | None = None
     # A bound of the segment's steps (s; inf: none), and the time of a peak
     # of |u| located at the segment's start (nan: none): `condition_base`.
     step_bound: jnp.ndarray | None = None
     peak_time: jnp.ndarray | None = None
+    # Off its stop, whether the segment watches for a step that passes a
+    # whole touch (`condition_stop`); None: the base has no stop.
+    stop_armed: jnp.ndarray | None = None
 
 
 def _geometry(block, theta, s):

@@ -239,7 +239,29 @@ def condition_stop(t, y, args: Args, **kwargs):
     del t, kwargs
     margin = args.base.stop.margin(y[2], args.base.capacity)
     near = STOP_ROUNDING * args.base.capacity
-    return jnp.where(args.in_stop, margin, -margin) + near
+    value = jnp.where(args.in_stop, margin, -margin) + near
+    if args.stop_armed is None:
+        return value
+    # Off the stop, its force is 0 along the segment: a step may pass a
+    # whole touch (in and out) and end with -m + d > 0 again. As
+    # `condition_base` does for a peak of |u|: a step that passed a peak P
+    # past the gap ends, moving inward, with |u| >= P - |u'| H > capacity -
+    # |u'| H; `stop_passage` is <= 0 there, and its root comes after the
+    # touch's (the min's first root is the touch).
+    passage = stop_passage(y[2], args)
+    return jnp.where(args.stop_armed, jnp.minimum(value, passage), value)
+
+
+def stop_passage(base_state, args: Args):
+    """max(d|u|/dt, capacity - |u| - |u'| H) (m/s, m), H the step bound
+    (`Args.step_bound`): <= 0 at the end of a step that may have passed a
+    peak of |u| past the stop's gap. Armed in a segment off the stop that
+    starts with the base moving out (`Args.stop_armed`)."""
+    u, u_dot = base_state[0], base_state[1]
+    outward = jnp.sign(u) * u_dot
+    h = jnp.where(jnp.isfinite(args.step_bound), args.step_bound, 0.0)
+    below = args.base.capacity - jnp.abs(u) - jnp.abs(u_dot) * h
+    return jnp.maximum(outward, below)
 
 
 def condition_flight(t, y, args: Args, **kwargs):

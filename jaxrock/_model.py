@@ -252,9 +252,12 @@ def segment_args(c: Carry, block, base, motion, t=None) -> Args:
         return Args(block, base, motion, *args)
     step_bound = jnp.where(ended, jnp.inf, motion.step_bound)
     peak_time = jnp.where(c.kind == EventKind.BASE_PEAK, c.t, jnp.nan)
-    return Args(
-        block, base, motion, *args, in_stop(c.y[2], base), step_bound, peak_time
-    )
+    pushed = in_stop(c.y[2], base)
+    # Armed where the base moves out at the segment's start: a located
+    # root of `stop_passage` (moving in) does not begin an armed segment.
+    u, u_dot = c.y[2][0], c.y[2][1]
+    armed = None if pushed is None else ~pushed & (jnp.sign(u) * u_dot > 0)
+    return Args(block, base, motion, *args, pushed, step_bound, peak_time, armed)
 
 
 def with_start_conditions(c: Carry, block, base, motion) -> Carry:

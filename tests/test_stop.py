@@ -315,3 +315,28 @@ def test_rocking_that_starts_where_the_base_meets_the_stop():
     assert float(one.max_base_displacement) == pytest.approx(
         theirs["max_base_displacement"], rel=1e-6
     )
+
+
+def test_a_touch_passed_within_one_step_off_the_stop_is_seen():
+    """A segment that starts off the stop (an impact 0.19 mm short of the
+    gap, the base then moving out) has no stop force along it: a step may
+    pass a whole touch (1.4 ms in and out of a damped stiff stop) and end
+    off it again, its condition > 0 at both ends. Such a step ends moving
+    inward with |u| within |u'| H of the gap, where `stop_passage` is <= 0:
+    the touch is located. `simulate` equals the map and the reference."""
+    iso = (1.3231152870499936, 0.2940538410692386, 0.4070934247393577)
+    block = (4.33071392188063, 0.9946467161706369)
+    pulse = (5.113898735405706, 1.5608435499497346, 3.433838383542118, 2.63293)
+    stop = (0.03724876966711781, 0.01850348836860471, 0.7754002675049301)
+    acc, t_end, max_step = ref.mp_pulse(*pulse)
+    base = jr.LinearIsolator(*iso, capacity=stop[0], stop=jr.Stop(*stop[1:]))
+    motion, window = jr.MPPulse(*pulse), dict(duration=t_end + 3.0, **TOL)
+    one = jr.simulate(jr.Block(*block), base, motion, **window)
+    bm = jr.behavior_map([block[0]], [block[1]], base, motion, **window)
+    theirs = ref.simulate(
+        *block, ("linear", *iso), acc, t_end + 3.0, max_step, stop=stop
+    )
+    assert int(one.impacts) == bm.impacts[0, 0] == theirs["impacts"]
+    assert int(one.segments) == bm.segments[0, 0]
+    for mine in (float(one.max_base_displacement), bm.max_base_displacement[0, 0]):
+        assert mine == pytest.approx(theirs["max_base_displacement"], rel=1e-8)
