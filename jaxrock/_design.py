@@ -24,11 +24,21 @@ import numpy as np
 import optax
 
 from ._block import Block
+from ._dynamics import check_restitution
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
 from ._misc import is_count
 from ._record import Record
-from ._results import ATOL, RTOL, Outcome, Response, SolverOptions, analysis_window
+from ._results import (
+    ATOL,
+    MAX_SEGMENTS,
+    REST_TOLERANCE,
+    RTOL,
+    Outcome,
+    Response,
+    SolverOptions,
+    analysis_window,
+)
 from ._scene import fixed_base, prepare
 from ._simulate import run
 
@@ -77,7 +87,7 @@ def responses(
     motions: AbstractGroundMotion,
     *,
     duration=None,
-    opts: SolverOptions = SolverOptions(),
+    opts: SolverOptions | None = None,
 ) -> Response:
     """The analysis of every (block, motion) pair on one base, vmapped.
 
@@ -97,7 +107,9 @@ def responses(
         duration: the length of every analysis (s); default None: each runs
             until its block's fate is decided, for at most 60 s after the
             end of its own motion (`simulate`).
-        opts: the numerical options (`SolverOptions`).
+        opts: the numerical options (`SolverOptions`); default None: those
+            `simulate` takes by default for `motions` (its step limit raised
+            for a long record).
 
     Returns:
         A `Response` whose fields have shape (n_blocks, n_motions).
@@ -111,6 +123,7 @@ def responses(
         >>> r.max_rotation.shape, r.max_rotation.round(3).tolist()
         ((2, 2), [[0.0, 0.0], [0.001, 0.068]])
     """
+    opts = _default_options(motions) if opts is None else opts
     lane_blocks, lane_motions, motion_axes, shape = _pairs(blocks, motions)
     if duration is None:  # run until decided
         duration, _ = analysis_window(motions, None)
@@ -119,6 +132,14 @@ def responses(
         lambda b, m: run(b, base, m, duration, opts), in_axes=(0, motion_axes)
     )(lane_blocks, lane_motions)
     return jax.tree_util.tree_map(lambda x: x.reshape(shape), out)
+
+
+def _default_options(motions, rtol=RTOL, atol=ATOL) -> SolverOptions:
+    """`simulate`'s default options for `motions`: its step limit raised for
+    a long record (`SolverOptions.for_motion`)."""
+    return SolverOptions.for_motion(
+        motions, rtol, atol, None, MAX_SEGMENTS, REST_TOLERANCE, None
+    )
 
 
 def _objective(base, blocks, motions, capacity, penalty, opts):
@@ -134,7 +155,7 @@ def isolator_objective(
     *,
     capacity: float = 0.3,
     penalty: float = 10.0,
-    opts: SolverOptions = SolverOptions(),
+    opts: SolverOptions | None = None,
 ) -> Callable[[dict], tuple]:
     """The design objective of an isolator over blocks x motions.
 
@@ -157,7 +178,8 @@ def isolator_objective(
             (`Record.stack`).
         capacity: the isolator's displacement capacity (m); default 0.3.
         penalty: the weight of the penalty (-); default 10.
-        opts: the numerical options (`SolverOptions`).
+        opts: the numerical options (`SolverOptions`); default None:
+            `simulate`'s for `motions` (`responses`).
 
     Returns:
         A function params -> (J, Response), for
@@ -178,6 +200,7 @@ def isolator_objective(
     """
 
     _check_objective(capacity, penalty)
+    opts = _default_options(motions) if opts is None else opts
 
     def objective(params):
         return _objective(make_base(params), blocks, motions, capacity, penalty, opts)
@@ -248,6 +271,8 @@ class DesignResult(eqx.Module):
             (steps + 1, n_blocks, n_motions).
         max_base_displacement: max |u| (m), same shape.
         overturned: whether each block overturned (bool), same shape.
+        status: each analysis's `Status` code, same shape: anything but
+            SUCCESS means that its numbers, and so J, are not final.
         best: the parameters with the lowest objective, name -> float.
 
     `tune_isolator` returns one (see its example).
@@ -259,6 +284,7 @@ class DesignResult(eqx.Module):
     max_rotation: np.ndarray
     max_base_displacement: np.ndarray
     overturned: np.ndarray
+    status: np.ndarray
     best: dict
 
 
@@ -332,14 +358,16 @@ def tune_isolator(
             rad/s, m, m/s); default 1e-10.
 
     Returns:
-        A `DesignResult` with every evaluated iterate and the best parameters.
+        A `DesignResult` with every evaluated iterate and the best parameters;
+        check its `status` (anything but SUCCESS: J is not final there).
 
     Raises:
         ValueError: an `init` or `bounds` that is not a dict of finite real
             numbers for the same names, a bound with low >= high, a starting
             value outside its bounds, a `capacity`, `penalty`,
-            `learning_rate` or `steps` out of its range, or a `make_base`
-            that does not return an isolated base.
+            `learning_rate` or `steps` out of its range, a `make_base`
+            that does not return an isolated base, or a block whose
+            `restitution_factor` f gives f e0 > 1 on it (as `simulate`).
 
     Examples:
         >>> import jax.numpy as jnp, jaxrock as jr
@@ -365,7 +393,7 @@ def tune_isolator(
         motions,
         jnp.asarray(capacity, dtype=float),
         jnp.asarray(penalty, dtype=float),
-        SolverOptions(rtol=rtol, atol=atol),
+        _default_options(motions, rtol, atol),
     )
 
     x = scale.unit(init)
@@ -389,6 +417,7 @@ def _value_and_grad_of(make_base, scale: "_Scaling", problem: tuple, x: dict):
             "FrictionPendulum, BilinearIsolator, ...) built from the parameters, "
             f"got {type(base).__name__}"
         )
+    check_restitution(problem[0], base)  # f e0 <= 1 (as `simulate` checks)
     names = scale.names
     for k in names:  # the ends of each bound, the others at x
         for end in (0.0, 1.0):
@@ -447,6 +476,7 @@ def _descend(value_and_grad, optimizer, x, steps: int, scale: _Scaling) -> list:
                 np.asarray(r.max_rotation),
                 np.asarray(r.max_base_displacement),
                 np.asarray(r.outcome) == Outcome.OVERTURNED,
+                np.asarray(r.status),
             )
         )
         if i == steps:
@@ -468,5 +498,7 @@ def _design_result(rows: list, names) -> DesignResult:
         max_rotation=np.stack([row[3] for row in rows]),
         max_base_displacement=np.stack([row[4] for row in rows]),
         overturned=np.stack([row[5] for row in rows]),
-        best=rows[int(np.argmin(values))][0],
+        status=np.stack([row[6] for row in rows]),
+        # (A NaN J, of an invalid analysis, is never the best.)
+        best=rows[int(np.argmin(np.where(np.isnan(values), np.inf, values)))][0],
     )

@@ -1,0 +1,54 @@
+"""`jaxrock.design`: its analyses are `simulate`'s (a long record's step
+limit, the status of each analysis), and its inputs are checked as
+`simulate` checks them."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxrock as jr
+
+
+def _long_record():
+    """20,000 samples: a weak start, then nothing new for 18,000 samples
+    (one segment of more steps than `MAX_STEPS`), then a pulse at 190 s."""
+    dt, n = 0.01, 20000
+    t = np.arange(n) * dt
+    rng = np.random.default_rng(0)
+    late = (t > 190.0) & (t < 191.0)
+    ground = 0.5 * np.exp(-t / 2.0) * rng.standard_normal(n)
+    return jr.Record(ground + 4.0 * np.sin(2 * np.pi * (t - 190.0)) * late, dt)
+
+
+def test_design_analyses_a_long_record_as_simulate_does():
+    """`responses` (so the objective and `tune_isolator`) raise the step
+    limit for a long record as `simulate` does, and `DesignResult` keeps
+    each analysis's status."""
+    record, block = _long_record(), jr.Block(4.0, 1.0)
+    one = jr.simulate(block, jr.LinearIsolator(2.0, 0.2, 0.5), record)
+    assert bool(one.ok) and int(one.outcome) == jr.Outcome.OVERTURNED
+    res = jr.design.tune_isolator(
+        lambda p: jr.LinearIsolator(p["period"], 0.2, 0.5),
+        {"period": 2.0},
+        block,
+        record,
+        bounds={"period": (1.0, 3.0)},
+        steps=0,
+    )
+    assert res.status.shape == (1, 1, 1)
+    assert np.all(res.status == jr.Status.SUCCESS)
+    assert res.max_rotation[0, 0, 0] == pytest.approx(float(one.max_rotation))
+
+
+def test_tune_isolator_checks_restitution_on_the_base():
+    """f e0 <= 1 depends on the base: checked as `simulate` checks it, with
+    the parameter named, not a NaN objective and a NaN period later."""
+    with pytest.raises(ValueError, match="restitution_factor"):
+        jr.design.tune_isolator(
+            lambda p: jr.LinearIsolator(p["period"], 0.2, 0.5),
+            {"period": 2.0},
+            jr.Block(jnp.array([4.0, 6.0]), 1.0, restitution_factor=1.5),
+            jr.MPPulse(0.8, 1.0, 2.0, 0.0),
+            bounds={"period": (1.0, 3.0)},
+            steps=2,
+        )
