@@ -13,6 +13,7 @@ from ._response_spectrum import (
     motion_samples,
     oscillator_coefficients,
 )
+from ._vertical import WithVertical
 
 # After the ground stops, a floor keeps vibrating: the floor motion runs this
 # many of the building's longest periods past the motion's end.
@@ -64,6 +65,8 @@ def _floor_rows(samples, length, periods, damping, participation, ends: bool):
     rows = np.zeros((samples.rows.shape[0], n))
     width = min(n, samples.rows.shape[1])
     rows[:, :width] = samples.rows[:, :width]
+    # Past its `length` a row is padding, which no result depends on: zero.
+    rows[np.arange(n) >= samples.length[:, None]] = 0.0
     starts = rows.copy()
     if ends:
         starts[np.arange(rows.shape[0]), samples.length - 1] = 0.0
@@ -128,7 +131,8 @@ def floor_motion(
 
     Raises:
         ValueError: a parameter outside its range or of the wrong shape (the
-            message names it), or a motion that is not a ground motion.
+            message names it), a motion that is not a ground motion, or one
+            with a vertical part.
 
     Examples:
         >>> import numpy as np, jaxrock as jr
@@ -140,6 +144,15 @@ def floor_motion(
         >>> round(float(floor.pga / rec.pga), 1)  # at resonance: about 1 / (2 zeta)
         9.6
     """
+    if (
+        isinstance(motion, WithVertical)
+        or getattr(motion, "vertical", None) is not None
+    ):
+        raise ValueError(
+            "`motion` has a vertical part, which floor_motion does not filter "
+            "(the building's modes are horizontal): pass its horizontal motion, "
+            "and give the floor motion a vertical part with `with_vertical`"
+        )
     periods = check_periods(periods)
     modes = periods.size
     damping = _per_mode("damping", damping, modes)

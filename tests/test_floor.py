@@ -104,3 +104,31 @@ def test_a_block_on_a_floor_rocks_more_than_on_the_ground(record):
 def test_bad_building_parameters_are_named(record, kwargs, match):
     with pytest.raises(ValueError, match=match):
         jr.floor_motion(record, **kwargs)
+
+
+def test_a_record_s_padding_past_its_length_is_not_read():
+    """A record's samples past its `length` are padding, which no result
+    depends on: its floor motion is that of the record cut at its length."""
+    rng = np.random.default_rng(0)
+    ground, dt, length = rng.standard_normal(500), 0.01, 300
+    short = jr.floor_motion(jr.Record(ground[:length], dt), 1.0)
+    padded = jr.floor_motion(jr.Record(ground, dt, length=length), 1.0)
+    assert int(padded.length) == int(short.length)
+    np.testing.assert_array_equal(
+        np.asarray(padded.samples)[: int(padded.length)],
+        np.asarray(short.samples)[: int(short.length)],
+    )
+
+
+def test_a_motion_with_a_vertical_part_is_refused():
+    """The building's modes filter the horizontal motion: a vertical part
+    would be dropped without a word, so it is refused, by name."""
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    t = np.arange(0.0, 2.0, 0.01)
+    record = jr.Record(np.sin(2 * np.pi * t), 0.01)
+    for motion in (
+        pulse.with_vertical(jr.SinePulse(2.0, 3.0)),
+        record.with_vertical(jr.Record(0.5 * np.sin(2 * np.pi * t), 0.01)),
+    ):
+        with pytest.raises(ValueError, match="`motion` has a vertical part"):
+            jr.floor_motion(motion, 1.0)
