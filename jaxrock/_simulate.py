@@ -447,7 +447,15 @@ def _history_rows(rows: dict, grid: np.ndarray) -> History:
     else:
         z = np.zeros(y.shape[0])
     kinds = [EventKind(int(k)) for k in rows["kind"][:passes]]
-    events = [(t, k) for t, k in zip(rows["end_t"], kinds) if k != EventKind.END]
+    events = []
+    regimes = zip(rows["before_regime"][:passes], rows["after_regime"][:passes])
+    for t, k, (before, after) in zip(rows["end_t"], kinds, regimes):
+        if k != EventKind.END:
+            events.append((t, k))
+        # An uplift in the transition of another event (a damped stop's push
+        # at contact lifts the block at once) is an event too.
+        if before == 0 and after != 0 and k != EventKind.UPLIFT:
+            events.append((t, EventKind.UPLIFT))
     if rows["start_rocked"]:
         events.insert(0, (0.0, EventKind.UPLIFT))
     moving = y.shape[1] > 2  # a base with a state: u and u' lead it

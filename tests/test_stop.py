@@ -340,3 +340,21 @@ def test_a_touch_passed_within_one_step_off_the_stop_is_seen():
     assert int(one.segments) == bm.segments[0, 0]
     for mine in (float(one.max_base_displacement), bm.max_base_displacement[0, 0]):
         assert mine == pytest.approx(theirs["max_base_displacement"], rel=1e-8)
+
+
+def test_an_uplift_at_a_stop_contact_is_an_event_of_the_history():
+    """A damped stop pushes the base the moment it meets it, which can lift
+    the block at once: the history lists the uplift (at `uplift_time`) after
+    the stop event, as every uplift."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 6.0, 0.01)
+    ground = 3.0 * np.sin(2 * np.pi * 0.9 * t) * np.exp(-(((t - 2.0) / 1.2) ** 2))
+    record = jr.Record(ground + 0.2 * rng.standard_normal(t.size), 0.01)
+    base = jr.LinearIsolator(2.0, 0.1, 0.5, capacity=0.05, stop=jr.Stop(0.1, 0.2))
+    r = jr.simulate(jr.Block(3.0, 0.5), base, record, history=True)
+    h = r.history
+    uplifts = h.event_times[np.array(h.event_kinds) == "uplift"]
+    assert uplifts.size >= 1
+    assert uplifts[0] == float(r.uplift_time)
+    first = list(h.event_times).index(uplifts[0])
+    assert h.event_kinds[first] == "stop"  # the same transition
