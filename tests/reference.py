@@ -193,6 +193,8 @@ def simulate(
         ) / Y
 
     def rhs(t, x, s):
+        if not all(map(math.isfinite, x)):  # a trial step that overflowed:
+            return [math.nan] * len(x)  # rejected (math.cos(inf) would raise)
         ag, g = acc(t), gravity(t)
         th, thd = x[0], x[1]
         if fixed:
