@@ -65,7 +65,12 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--sample", type=int, default=40)
     p.add_argument("--bases", default="fixed,linear,fps")
-    p.add_argument("--chunk-size", type=int, default=610)
+    p.add_argument(
+        "--chunk-size",
+        type=lambda s: s if s == "auto" else int(s),
+        default="auto",
+        help="cells a chunk (default: behavior_map's own, one chunk a core)",
+    )
     p.add_argument("--rtol", type=float, default=1e-8)
     p.add_argument("--no-peer", action="store_true")
     a = p.parse_args()
