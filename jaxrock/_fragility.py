@@ -221,8 +221,10 @@ _LADDER["displacement"] = "isolator"
 
 
 def _number_text(value: float) -> str:
-    """A threshold as written in a state's name: 0.5, 1, 0.123456789."""
-    return np.format_float_positional(value, trim="-")
+    """A threshold as written in a state's name: 0.5, 1, 0.123456789, 1e-300
+    (Python's shortest repr, without a trailing ".0")."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def _damage_state(text) -> tuple[str, float]:

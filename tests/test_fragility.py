@@ -448,3 +448,17 @@ def test_a_displacement_state_beyond_the_capacity_is_refused(
     else:
         with pytest.raises(Ran):
             jr.fragility(4.0, 1.0, base, pulse, scales=[1.0, 2.0], damage_states=states)
+
+
+def test_damage_state_names_write_their_thresholds_short():
+    """A state's name writes its threshold as Python's shortest repr: a tiny
+    threshold is not written out in 300 digits, and 1.0 is "1"."""
+    from jaxrock._fragility import check_damage_states
+
+    names, parsed = check_damage_states(
+        ["rotation:1e-300", "rotation:0.50", "rotation:1.0", "overturning"],
+        4.0,
+        jr.LinearIsolator(2.0, 0.35, 0.5),
+    )
+    assert names == ("rotation:1e-300", "rotation:0.5", "rotation:1", "overturning")
+    assert parsed[0] == ("rotation", 1e-300)
