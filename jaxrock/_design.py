@@ -27,7 +27,7 @@ from ._block import Block
 from ._dynamics import check_restitution
 from ._ground import AbstractGroundMotion
 from ._isolators import AbstractIsolator
-from ._misc import is_count
+from ._misc import broadcast_batch_shape, is_count
 from ._record import Record
 from ._results import (
     ATOL,
@@ -47,19 +47,26 @@ def _pairs(blocks: Block, motions: AbstractGroundMotion):
     """Every (block, motion) pair as one lane: leaves of shape (n_blocks
     n_motions,), and the motions' `jax.vmap` in_axes. One record is shared by
     every lane; a suite's lanes read its records in place (`RecordSignal.row`)."""
-    shape = np.broadcast_shapes(jnp.shape(blocks.slenderness), jnp.shape(blocks.size))
+    if not isinstance(blocks, Block):
+        raise ValueError(f"`blocks` must be a Block, got {type(blocks).__name__}")
+    if not isinstance(motions, AbstractGroundMotion):
+        raise ValueError(
+            "`motions` must be a ground motion (a pulse, a Record or a suite), "
+            f"got {type(motions).__name__}"
+        )
+    shape = broadcast_batch_shape(blocks)  # (every parameter of the blocks)
     if len(shape) > 1:
         raise ValueError(
             f"`blocks` must have one batch axis (n_blocks) or none, got shape {shape}"
         )
-    nb = int(np.prod(shape))
-    of_suite = isinstance(motions, Record) and bool(motions.batch_shape)
-    if of_suite:
-        nm = int(np.prod(motions.batch_shape))
-    elif isinstance(motions, Record):
-        nm = 1
-    else:
-        nm = max([int(jnp.size(x)) for x in jax.tree_util.tree_leaves(motions)] + [1])
+    batch = motions.batch_shape
+    if len(batch) > 1:
+        raise ValueError(
+            "`motions` must have one batch axis (a suite or a batch of pulses) "
+            f"or none, got shape {batch}"
+        )
+    nb, nm = int(np.prod(shape)), int(np.prod(batch))
+    of_suite = isinstance(motions, Record) and bool(batch)
 
     def tile_blocks(x):
         return jnp.repeat(jnp.broadcast_to(jnp.asarray(x), (nb,)), nm)

@@ -52,3 +52,33 @@ def test_tune_isolator_checks_restitution_on_the_base():
             bounds={"period": (1.0, 3.0)},
             steps=2,
         )
+
+
+@pytest.mark.parametrize(
+    "blocks, motions, message",
+    [
+        (4.0, jr.MPPulse(1.0, 1.0, 2.0, 0.0), "`blocks` must be a Block"),
+        (jr.Block(4.0, 1.0), 3.0, "`motions` must be a ground motion"),
+        (
+            jr.Block(4.0, 1.0),
+            jr.MPPulse(jnp.ones((2, 2)), 1.0, 2.0, 0.0),
+            "`motions` must have one batch axis",
+        ),
+        (
+            jr.Block(4.0, 1.0),
+            jr.MPPulse(jnp.ones(2), jnp.ones(3), 2.0, 0.0),
+            "must share one batch shape",
+        ),
+        (
+            jr.Block(jnp.ones((2, 2)) * 4.0, 1.0),
+            jr.MPPulse(1.0, 1.0, 2.0, 0.0),
+            "`blocks` must have one batch axis",
+        ),
+    ],
+)
+def test_design_names_blocks_and_motions_it_cannot_pair(blocks, motions, message):
+    """Blocks and motions are paired before anything compiles; what cannot be
+    paired is named (not a broadcast error from inside JAX)."""
+    base = jr.LinearIsolator(2.0, 0.35, 0.5)
+    with pytest.raises(ValueError, match=message):
+        jr.design.responses(base, blocks, motions)
