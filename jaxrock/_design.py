@@ -145,7 +145,13 @@ def _default_options(motions, rtol=RTOL, atol=ATOL) -> SolverOptions:
     """`simulate`'s default options for `motions`: its step limit raised for
     a long record (`SolverOptions.for_motion`)."""
     return SolverOptions.for_motion(
-        motions, rtol, atol, None, MAX_SEGMENTS, REST_TOLERANCE, None
+        motions,
+        rtol=rtol,
+        atol=atol,
+        max_steps=None,
+        max_segments=MAX_SEGMENTS,
+        rest_tolerance=REST_TOLERANCE,
+        solver=None,
     )
 
 

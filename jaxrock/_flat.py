@@ -389,8 +389,8 @@ def _locate(a: _Attempt, opts, unfired=()):
 
     Newton runs in s = (t - t0) / h on the dense output in s (a quartic in s
     for Tsit5), `_NEWTON` iterations in a loop (a lane stops moving once
-    converged). Unrolled, they ran no faster, on any base (a friction
-    pendulum's conditions too, which read its z), and its loop compiled in
+    converged). Unrolled, they run no faster, on any base (a friction
+    pendulum's conditions too, which read its z), and the loop compiles in
     1.3-1.5 times as long.
     """
     # The conditions of the attempt, one per entry of `fired` (the batch's
