@@ -2,6 +2,7 @@
 (Mavroeidis-Papageorgiou, one-sine); records are `_record.py`."""
 
 import abc
+import math
 
 import jax
 import jax.numpy as jnp
@@ -470,7 +471,8 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
     Raises:
         ValueError: an unknown `name` (the message lists the known ones), or
             a `scale` that is not one real number, finite and > 0 (a string,
-            a boolean, None or an array is refused, not converted).
+            a boolean, None or an array is refused, not converted), or one
+            that makes the amplitude overflow.
 
     Examples:
         >>> import jaxrock as jr
@@ -488,4 +490,10 @@ def near_fault_pulse(name: str, scale: float = 1.0) -> MPPulse:
         raise ValueError(f"`scale` must be one number, got shape {scale.shape}")
     scale = float(scale)
     amplitude_cm, gamma, phase, frequency = _TABLE_3_1[name]
-    return MPPulse(scale * amplitude_cm / 100.0, frequency, gamma, phase)
+    amplitude = scale * amplitude_cm / 100.0
+    if not math.isfinite(amplitude):
+        raise ValueError(
+            f"`scale` times the pulse's amplitude ({amplitude_cm / 100.0:g} m/s) "
+            f"must be finite, got scale = {scale:g}"
+        )
+    return MPPulse(amplitude, frequency, gamma, phase)

@@ -28,3 +28,10 @@ def test_near_fault_pulse_scales_the_amplitude(scale):
     """Integers, NumPy scalars and 0-d arrays are one number."""
     pulse = jr.near_fault_pulse(NAME, scale=scale)
     assert float(pulse.amplitude) == pytest.approx(2 * 0.87, rel=1e-15)
+
+
+def test_near_fault_pulse_names_a_scale_that_makes_the_amplitude_overflow():
+    """A finite `scale` whose amplitude overflows is refused by its name, not
+    as the pulse's `amplitude` the user never gave."""
+    with pytest.raises(ValueError, match=r"`scale` times the pulse's amplitude"):
+        jr.near_fault_pulse(NAME, scale=1e308)
