@@ -15,6 +15,7 @@ counts before trusting a gradient there.
 """
 
 import math
+import warnings
 from collections.abc import Callable
 
 import equinox as eqx
@@ -37,6 +38,7 @@ from ._results import (
     Outcome,
     Response,
     SolverOptions,
+    Status,
     analysis_window,
 )
 from ._scene import fixed_base, prepare
@@ -285,8 +287,11 @@ class DesignResult(eqx.Module):
         max_base_displacement: max |u| (m), same shape.
         overturned: whether each block overturned (bool), same shape.
         status: each analysis's `Status` code, same shape: anything but
-            SUCCESS means that its numbers, and so J, are not final.
-        best: the parameters with the lowest objective, name -> float.
+            SUCCESS (or CAPACITY_EXCEEDED, an isolator past its geometric
+            limit) means that its numbers, and so J, are not final.
+        best: the parameters with the lowest objective, name -> float, among
+            the iterates whose analyses are all final (`tune_isolator` warns
+            when one is not).
 
     `tune_isolator` returns one (see its example).
     """
@@ -371,8 +376,10 @@ def tune_isolator(
             rad/s, m, m/s); default 1e-10.
 
     Returns:
-        A `DesignResult` with every evaluated iterate and the best parameters;
-        check its `status` (anything but SUCCESS: J is not final there).
+        A `DesignResult` with every evaluated iterate and the best parameters.
+        An analysis that does not reach its end (a `status` other than
+        SUCCESS or CAPACITY_EXCEEDED) makes J not final at its iterate: a
+        `UserWarning` says where, and `best` skips those iterates.
 
     Raises:
         ValueError: an `init` or `bounds` that is not a dict of finite real
@@ -502,8 +509,25 @@ def _descend(value_and_grad, optimizer, x, steps: int, scale: _Scaling) -> list:
 
 
 def _design_result(rows: list, names) -> DesignResult:
-    """The `DesignResult` of `_descend`'s rows; `best`: the lowest J's."""
+    """The `DesignResult` of `_descend`'s rows; `best`: the lowest J among the
+    iterates whose analyses are all final (among all, with a warning, when
+    none is)."""
     values = np.array([row[1] for row in rows])
+    status = np.stack([row[6] for row in rows])
+    final = (status == Status.SUCCESS) | (status == Status.CAPACITY_EXCEEDED)
+    settled = final.reshape(len(rows), -1).all(axis=1)
+    if not settled.all():
+        codes = sorted({Status(int(c)).name for c in np.unique(status[~final])})
+        warnings.warn(
+            f"{int((~final).sum())} of {final.size} analyses did not reach their "
+            f"end ({', '.join(codes)}), at iterates "
+            f"{np.flatnonzero(~settled).tolist()}: J there is not final; `best` "
+            + ("is chosen among the other iterates" if settled.any() else "is not")
+            + " (see `DesignResult.status`)",
+            stacklevel=3,
+        )
+    # (A NaN J, of an invalid analysis, is never the best.)
+    ranked = np.where(np.isnan(values) | (settled.any() & ~settled), np.inf, values)
     return DesignResult(
         params={k: np.array([row[0][k] for row in rows]) for k in names},
         objective=values,
@@ -511,7 +535,6 @@ def _design_result(rows: list, names) -> DesignResult:
         max_rotation=np.stack([row[3] for row in rows]),
         max_base_displacement=np.stack([row[4] for row in rows]),
         overturned=np.stack([row[5] for row in rows]),
-        status=np.stack([row[6] for row in rows]),
-        # (A NaN J, of an invalid analysis, is never the best.)
-        best=rows[int(np.argmin(np.where(np.isnan(values), np.inf, values)))][0],
+        status=status,
+        best=rows[int(np.argmin(ranked))][0],
     )

@@ -82,3 +82,36 @@ def test_design_names_blocks_and_motions_it_cannot_pair(blocks, motions, message
     base = jr.LinearIsolator(2.0, 0.35, 0.5)
     with pytest.raises(ValueError, match=message):
         jr.design.responses(base, blocks, motions)
+
+
+def _row(period, objective, status):
+    """A row of `_descend`: one iterate with one analysis of `status`."""
+    shape = (1, 1)
+    return (
+        {"period": period},
+        objective,
+        {"period": 0.0},
+        np.zeros(shape),
+        np.zeros(shape),
+        np.zeros(shape, bool),
+        np.full(shape, int(status)),
+    )
+
+
+def test_design_s_best_skips_iterates_whose_analyses_are_not_final():
+    """An iterate with an analysis that stopped short (its J is not final) is
+    never `best`, even at the lowest J, and a warning names it; with no final
+    iterate the lowest J stands, with the warning."""
+    from jaxrock._design import _design_result
+
+    rows = [
+        _row(1.0, 0.3, jr.Status.SUCCESS),
+        _row(2.0, 0.01, jr.Status.MAX_STEPS),
+        _row(3.0, 0.2, jr.Status.CAPACITY_EXCEEDED),
+    ]
+    with pytest.warns(UserWarning, match=r"1 of 3 analyses .*MAX_STEPS.*\[1\]"):
+        res = _design_result(rows, ["period"])
+    assert res.best == {"period": 3.0}
+    with pytest.warns(UserWarning, match="`best` is not"):
+        res = _design_result(rows[1:2], ["period"])
+    assert res.best == {"period": 2.0}
