@@ -1,6 +1,8 @@
 """Elastic response spectra of linear oscillators under any ground motion,
 exact for a record's piecewise-linear samples (Nigam & Jennings 1969)."""
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -24,9 +26,9 @@ _PULSE_POINTS = 50
 _NODES = 16
 _PANEL = 1.0
 # The periods of a spectrum (s): from 1 ms (far stiffer than any structure or
-# object: the oscillator follows the ground, Sa = PGA) to 100 s. Shorter ones
-# need omega h / _PANEL quadrature panels per record step (memory), longer
-# ones a tail of one period after the motion.
+# object: the oscillator follows the ground, Sa = PGA) to 100 s (longer than
+# any isolated structure's). Shorter ones need omega h / _PANEL quadrature
+# panels per record step (memory).
 PERIOD_RANGE = (1e-3, 100.0)
 
 
@@ -161,15 +163,17 @@ def oscillator_coefficients(period, damping, dt):
     return np.stack([a11, a12, a21, a22, b0u, b1u, b0v, b1v])
 
 
-@jax.jit
-def _peak_displacements(rows, length, coefficients):
+@functools.partial(jax.jit, static_argnames="free")
+def _peak_displacements(rows, length, coefficients, omega, damping, free=False):
     """max |u| over the samples k < length of each row (R, n) and period:
-    the recurrence of `oscillator_coefficients` (8, R, P) from rest."""
+    the recurrence of `oscillator_coefficients` (8, R, P) from rest; with
+    `free`, also over the free vibration after each row's last sample
+    (`_free_vibration_peak`: the ground still from there on)."""
     a11, a12, a21, a22, b0u, b1u, b0v, b1v = coefficients
     zero = jnp.zeros(a11.shape)
 
     def step(carry, x):
-        u, v, peak = carry
+        u, v, peak, end = carry
         a0, a1, k = x
         a0, a1 = a0[:, None], a1[:, None]
         u, v = (
@@ -177,18 +181,38 @@ def _peak_displacements(rows, length, coefficients):
             a21 * u + a22 * v + b0v * a0 + b1v * a1,
         )
         inside = (k + 1 < length)[:, None]
-        return (u, v, jnp.where(inside, jnp.maximum(peak, jnp.abs(u)), peak)), None
+        last = (k + 2 == length)[:, None]  # (u, v) at the row's last sample
+        end = tuple(jnp.where(last, new, old) for new, old in zip((u, v), end))
+        peak = jnp.where(inside, jnp.maximum(peak, jnp.abs(u)), peak)
+        return (u, v, peak, end), None
 
     ks = jnp.arange(rows.shape[1] - 1)
-    (_, _, peak), _ = jax.lax.scan(
-        step, (zero, zero, zero), (rows[:, :-1].T, rows[:, 1:].T, ks)
+    (_, _, peak, end), _ = jax.lax.scan(
+        step, (zero, zero, zero, (zero, zero)), (rows[:, :-1].T, rows[:, 1:].T, ks)
     )
-    return peak
+    if not free:
+        return peak
+    return jnp.maximum(peak, _free_vibration_peak(*end, omega, damping))
 
 
-def spectral_displacements(samples: MotionSamples, periods, damping):
+def _free_vibration_peak(u, v, omega, damping):
+    """max |u(tau)| over tau >= 0 of the free vibration u'' + 2 zeta omega u'
+    + omega^2 u = 0 from (u, v) (m, m/s): its extrema decay, so the peak is
+    |u| at tau = 0 or at the first extremum, u'(tau_1) = 0 with omega_d tau_1
+    in [0, pi): u' = e^(-zeta omega tau) (v cos omega_d tau - K sin omega_d
+    tau), K = (omega^2 u + zeta omega v) / omega_d."""
+    wd = omega * jnp.sqrt(1.0 - damping**2)
+    k = (omega**2 * u + damping * omega * v) / wd
+    x = jnp.mod(jnp.arctan2(v, k), jnp.pi)  # omega_d tau_1
+    b = (v + damping * omega * u) / wd
+    at = jnp.exp(-damping * omega * x / wd) * (u * jnp.cos(x) + b * jnp.sin(x))
+    return jnp.maximum(jnp.abs(u), jnp.abs(at))
+
+
+def spectral_displacements(samples: MotionSamples, periods, damping, free=False):
     """max |u| (m) of the rows of `samples` at `periods` (R, P), unscaled:
-    every row's coefficients from its own dt, all rows in one compiled call."""
+    every row's coefficients from its own dt, all rows in one compiled call;
+    with `free`, the free vibration after each row's last sample counts."""
     coefficients = np.stack(
         [oscillator_coefficients(periods, damping, dt) for dt in samples.dt], axis=1
     )
@@ -197,6 +221,9 @@ def spectral_displacements(samples: MotionSamples, periods, damping):
             jnp.asarray(samples.rows),
             jnp.asarray(samples.length),
             jnp.asarray(coefficients),
+            jnp.asarray(2 * np.pi / np.asarray(periods, dtype=float)),
+            float(damping),
+            free=free,
         )
     )
 
@@ -268,8 +295,9 @@ def response_spectrum(
     state is carried from sample to sample by the exact solution over each
     interval (Nigam & Jennings 1969); the peak is taken over the record's
     samples, from t = 0 to its last sample. A closed-form pulse is sampled
-    every min(1 ms, T_min / 50) s from t = 0 to one longest period after
-    its end (its free vibration included) and treated as a record. A suite's
+    every min(1 ms, T_min / 50) s from t = 0 to its end and treated as a
+    record, and the oscillator's free vibration after it counts, in closed
+    form (its first extremum: later ones decay). A suite's
     records, of any lengths and time steps, and all periods run in one
     compiled call; each record's spectrum equals, to the bit, that of the
     record alone. A scaled record's spectra are those of its samples before
@@ -301,8 +329,9 @@ def response_spectrum(
     periods = check_periods(periods)
     damping = check_damping(damping)
     step = min(_PULSE_STEP, float(periods.min()) / _PULSE_POINTS)
-    samples = motion_samples(motion, step=step, tail=float(periods.max()))
-    peak = samples.per_member(spectral_displacements(samples, periods, damping))
+    samples = motion_samples(motion, step=step)
+    free = not isinstance(motion, Record)  # a pulse: its free vibration counts
+    peak = samples.per_member(spectral_displacements(samples, periods, damping, free))
     omega = 2 * np.pi / periods
     names = motion.names() if isinstance(motion, Record) else None
     return ResponseSpectrum(
