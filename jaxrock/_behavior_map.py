@@ -103,6 +103,8 @@ class BehaviorMap(eqx.Module):
         else:
             on_records = c.dims[0].startswith("record")
         one = on_records and names is not None and len(names) == self.outcome.shape[0]
+        # A record of the suite without a name is labelled as a member.
+        one = one and names[index] is not None
         member = f" [{_member_label(c, index) or index}]"
         on_bases = c.dims[0].startswith("base")
         motion = names[index] if one else self.motion + ("" if on_bases else member)

@@ -15,7 +15,15 @@ from ._intensity import intensity_measure, measure_attrs, parse_measure
 from ._isolators import AbstractIsolator, FixedBase
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import grid_axis, is_count, one_real_number, positive, unbatched
+from ._misc import (
+    grid_axis,
+    is_count,
+    one_block_options,
+    one_real_number,
+    positive,
+    scale_factors,
+    unbatched,
+)
 from ._model import check_base_and_motion
 from ._record import Record
 from ._results import Outcome, Status
@@ -752,6 +760,7 @@ def fragility(
         ...                     scales=[0.2, 0.5, 1.0, 1.5])  # doctest: +SKIP
     """
     states, parsed = _checked(measure, base, motions, slenderness, size, damage_states)
+    one_block_options(map_options, "a fragility")
     sources, names = _sources(motions)
     labels = coordinates(base, motions)
     described = _described(motions, scales, levels, measure)
@@ -883,7 +892,7 @@ def _ensemble(motions, scales):
     """The motions at every factor of `scales` (and the factors), or, with
     `scales` None, the motions as given, which must then be an ensemble."""
     if scales is not None:
-        scales = grid_axis("scales", scales)
+        scales = scale_factors(grid_axis("scales", scales), "scales")
         return motions.scaled(scales), scales
     if motions.batch_shape == ():
         raise ValueError(

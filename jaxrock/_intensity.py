@@ -306,7 +306,10 @@ def _peak_measure(motion, name, slenderness, size, baseline=False):
         v, d, _, _ = _integrals(samples.rows, samples.dt, samples.length)
         if baseline:
             v, _ = _baseline_corrected(v, d, samples.dt, samples.length)
-        pga = samples.per_member(np.abs(samples.rows).max(axis=1))
+        # Over each row's own `length` samples: the rest is padding.
+        inside = np.arange(samples.rows.shape[1]) < samples.length[:, None]
+        peaks = np.where(inside, np.abs(samples.rows), 0.0).max(axis=1)
+        pga = samples.per_member(peaks)
         pgv = samples.per_member(np.abs(v).max(axis=1))
     else:
         shape = tuple(motion.batch_shape)

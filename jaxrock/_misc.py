@@ -164,6 +164,20 @@ def unbatched(name: str, module, result: str) -> None:
         )
 
 
+def one_block_options(map_options: dict, result: str) -> None:
+    """`ValueError` naming the option if `map_options` give the blocks'
+    `restitution_factor` or `restitution` as more than one value: a `result`
+    analyses one block, and an array of values would add an axis of blocks
+    to its map."""
+    for name in ("restitution_factor", "restitution"):
+        value = map_options.get(name)
+        if value is not None and np.size(value) != 1:
+            raise ValueError(
+                f"`{name}` must be one number for {result} (the analyses of one "
+                f"block), got shape {np.shape(value)}"
+            )
+
+
 def scale_factors(factor, name: str = "factor") -> np.ndarray:
     """Scale factors as an array of real numbers, each finite and > 0
     (`ValueError` naming `name` else: a string, a bool or None is refused,

@@ -471,7 +471,9 @@ class Record(AbstractGroundMotion):
 
     @property
     def peak_acceleration(self):
-        return jnp.max(jnp.abs(self.samples), axis=-1)
+        # Over each record's own `length` samples: the rest is padding.
+        inside = jnp.arange(self.sample_count) < self.length[..., None]
+        return jnp.max(jnp.where(inside, jnp.abs(self.samples), 0.0), axis=-1)
 
     @property
     def pga(self) -> np.ndarray:

@@ -278,6 +278,11 @@ class SolverOptions(AbstractChecked):
     until_decided: Bool[Array, ""] = eqx.field(default=False, converter=_flag)
 
     def __check_init__(self):
+        # One number each: the error norm would broadcast an array over the
+        # state, and the rest rule over the lanes.
+        limits = {"rtol": "> 0", "atol": "> 0", "rest_tolerance": "in [0, 0.01]"}
+        for name, allowed in limits.items():
+            one_real_number(name, getattr(self, name), allowed)
         for name in ("max_steps", "max_segments"):
             value = getattr(self, name)
             if not is_count(value) or value < 1:

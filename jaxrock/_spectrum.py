@@ -9,7 +9,7 @@ from ._ground import SinePulse
 from ._isolators import AbstractIsolator
 from ._labeled import ATTRS, Coordinates, coordinates, dataset
 from ._maps import behavior_map
-from ._misc import grid_axis, positive, unbatched
+from ._misc import grid_axis, one_block_options, positive, unbatched
 from ._results import Outcome, Status
 
 
@@ -153,6 +153,8 @@ def overturning_spectrum(
     if not isinstance(block, Block):
         raise ValueError(f"`block` must be a Block, got {type(block).__name__}")
     unbatched("block", block, "spectrum")
+    one_block_options(map_options, "an overturning spectrum")
+    map_options = _block_options(block, map_options)
     p = float(block.p)
     uplift = float(block.uplift_acceleration)
     F, A = np.meshgrid(fr, ar, indexing="ij")
@@ -181,6 +183,28 @@ def overturning_spectrum(
         seconds=bm.seconds,
         coordinates=coordinates(base),
     )
+
+
+def _block_options(block: Block, map_options: dict) -> dict:
+    """`map_options` with the block's own coefficient of restitution and
+    friction, which `behavior_map` takes as keywords (its grid gives only the
+    slenderness and size); `ValueError` where the block and `map_options`
+    both set one (a `restitution_factor` of 1, the default, sets none)."""
+    own = {}
+    if block.restitution is not None:
+        own["restitution"] = float(block.restitution)
+    elif float(block.restitution_factor) != 1.0:
+        own["restitution_factor"] = float(block.restitution_factor)
+    if block.friction is not None:
+        own["friction"] = float(block.friction)
+    given = {"restitution", "restitution_factor"} & set(map_options)
+    clash = [k for k in own if k in map_options or (k != "friction" and given)]
+    if clash:
+        raise ValueError(
+            f"`{clash[0]}` is given twice: set it on the `block` or as a keyword, "
+            "not both"
+        )
+    return map_options | own
 
 
 def _mode2_margin(psi, w, samples=1001):

@@ -37,6 +37,11 @@ class ChunkStore:
     """
 
     def __init__(self, folder, key: str, arrays: tuple[str, ...]):
+        if not isinstance(folder, (str, os.PathLike)):
+            raise ValueError(
+                "`store` must be a folder's path (a str or path-like), got "
+                f"{type(folder).__name__}"
+            )
         if not str(folder).strip():
             raise ValueError("`store` must name a folder, got an empty string")
         self.folder = Path(folder)

@@ -438,3 +438,18 @@ def test_history_step_that_is_not_one_number_is_named():
         jr.simulate(
             jr.Block(4.0, 1.0), jr.FixedBase(), PULSE, history=True, history_step=[0.1]
         )
+
+
+@pytest.mark.parametrize("name", ["rtol", "atol", "rest_tolerance"])
+def test_map_and_simulate_refuse_tolerance_arrays(name):
+    value = {
+        "rtol": [1e-8, 1e-6],
+        "atol": [1e-10, 1e-9],
+        "rest_tolerance": [1e-6, 1e-5],
+    }
+    with pytest.raises(ValueError, match=f"`{name}` must be one number"):
+        jr.behavior_map(
+            [4.0], [1.0], jr.FixedBase(), PULSE, progress=False, **{name: value[name]}
+        )
+    with pytest.raises(ValueError, match=f"`{name}` must be one number"):
+        jr.simulate(jr.Block(4.0, 1.0), jr.FixedBase(), PULSE, **{name: value[name]})

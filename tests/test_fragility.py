@@ -462,3 +462,41 @@ def test_damage_state_names_write_their_thresholds_short():
     )
     assert names == ("rotation:1e-300", "rotation:0.5", "rotation:1", "overturning")
     assert parsed[0] == ("rotation", 1e-300)
+
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+
+
+@pytest.mark.parametrize("scales", [[1.0], [0.5, 1.0, 1.5]])
+@pytest.mark.parametrize("name", ["restitution_factor", "restitution"])
+def test_fragility_refuses_several_restitution_values(scales, name):
+    with pytest.raises(ValueError, match=f"`{name}` must be one number"):
+        jr.fragility(
+            4.0,
+            1.0,
+            jr.FixedBase(),
+            PULSE,
+            scales=scales,
+            progress=False,
+            **{name: [0.5, 0.9]},
+        )
+
+
+def test_overturning_spectrum_refuses_several_restitution_values():
+    with pytest.raises(ValueError, match="`restitution_factor` must be one number"):
+        jr.overturning_spectrum(
+            jr.Block(6.0, 1.0),
+            jr.FixedBase(),
+            [3.0],
+            [1.5],
+            restitution_factor=[0.5, 0.9],
+            progress=False,
+        )
+
+
+@pytest.mark.parametrize("scales", [[1.0, np.nan], [1.0, -0.5], [0.0]])
+def test_fragility_names_scales(scales):
+    with pytest.raises(ValueError, match="`scales`"):
+        jr.fragility(
+            3.0, 1.0, jr.FixedBase(), jr.near_fault_pulse("Tabas TAB/SP"), scales=scales
+        )

@@ -284,3 +284,25 @@ def test_a_sine_pulse_s_measures_are_its_closed_forms_at_any_frequency(frequency
         assert float(jr.intensity_measure(pulse, name)) == pytest.approx(
             value, rel=2e-5
         ), name
+
+
+def test_pga_ignores_samples_past_the_length():
+    t = np.arange(0.0, 3.0, 0.01)
+    a = 3.0 * np.sin(2 * np.pi * t)
+    padded = a.copy()
+    padded[200:] = 50.0
+    own, long = jr.Record(a[:200], 0.01), jr.Record(padded, 0.01, length=200)
+    assert float(jr.intensity_measure(long, "pga")) == float(
+        jr.intensity_measure(own, "pga")
+    )
+    assert float(long.pga) == float(own.pga) == 3.0
+    np.testing.assert_allclose(
+        jr.intensity_measure(long, "pga_ratio", slenderness=4.0),
+        jr.intensity_measure(own, "pga_ratio", slenderness=4.0),
+    )
+    assert float(long.scaled_to(pga=6.0).factor) == float(own.scaled_to(pga=6.0).factor)
+    # A suite whose second row is padded by another record's longer tail.
+    suite = jr.Record(
+        np.stack([padded, padded]), np.array([0.01, 0.01]), length=np.array([300, 200])
+    )
+    np.testing.assert_array_equal(jr.intensity_measure(suite, "pga"), [50.0, 3.0])

@@ -104,3 +104,33 @@ def test_minimum_is_the_lowest_whatever_the_order_of_the_axis(fixed_spectrum):
     )
     np.testing.assert_array_equal(reversed_.outcome, fixed_spectrum.outcome[:, ::-1])
     np.testing.assert_array_equal(reversed_.minimum, fixed_spectrum.minimum)
+
+
+def test_overturning_spectrum_uses_the_blocks_restitution_and_friction():
+    blk = jr.Block(6.0, 1.0, restitution_factor=0.5, friction=0.05)
+    s = jr.overturning_spectrum(blk, jr.FixedBase(), [3.0], [1.5], progress=False)
+    p, up = float(blk.p), float(blk.uplift_acceleration)
+    one = jr.simulate(
+        blk, jr.FixedBase(), jr.SinePulse(1.5 * up, 3.0 * p / (2 * np.pi))
+    )
+    assert s.status[0, 0] == int(one.status) == jr.Status.SLIDING
+    assert s.outcome[0, 0] == int(one.outcome)
+    assert s.impacts[0, 0] == int(one.impacts)
+
+
+def test_overturning_spectrum_uses_the_blocks_restitution_factor():
+    blk = jr.Block(6.0, 1.0, restitution_factor=0.5)
+    s = jr.overturning_spectrum(blk, jr.FixedBase(), [3.0], [1.5], progress=False)
+    p, up = float(blk.p), float(blk.uplift_acceleration)
+    one = jr.simulate(
+        blk, jr.FixedBase(), jr.SinePulse(1.5 * up, 3.0 * p / (2 * np.pi))
+    )
+    assert (s.outcome[0, 0], s.impacts[0, 0]) == (int(one.outcome), int(one.impacts))
+
+
+def test_overturning_spectrum_refuses_a_restitution_given_twice():
+    blk = jr.Block(6.0, 1.0, restitution_factor=0.5)
+    with pytest.raises(ValueError, match="restitution_factor"):
+        jr.overturning_spectrum(
+            blk, jr.FixedBase(), [3.0], [1.5], restitution_factor=0.8, progress=False
+        )

@@ -432,3 +432,16 @@ def test_a_store_tells_batches_whose_leaves_differ_only_in_shape(tmp_path):
     jr.behavior_map(lam, size, a, PULSE, store=tmp_path, progress=False)
     with pytest.raises(ValueError, match="another map"):
         jr.behavior_map(lam, size, b, PULSE, store=tmp_path, progress=False)
+
+
+@pytest.mark.parametrize("store", [3, 1.5, ["runs"]])
+def test_store_of_another_type_is_refused_by_name(store):
+    with pytest.raises(ValueError, match="`store`"):
+        jr.behavior_map(
+            [3.0],
+            [1.0],
+            jr.FixedBase(),
+            jr.near_fault_pulse("Tabas TAB/SP"),
+            store=store,
+            progress=False,
+        )

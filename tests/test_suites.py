@@ -383,3 +383,22 @@ def test_a_cell_of_a_short_record_in_a_suite_ends_as_under_it_alone():
     assert cell.impacts[0, 0] == alone.impacts
     np.testing.assert_allclose(cell.max_rotation[0, 0], alone.max_rotation, rtol=1e-9)
     assert bm.select(1).impacts[0, 0] > alone.impacts
+
+
+def test_select_of_an_unnamed_record_saves_and_loads(tmp_path):
+    t = np.arange(0.0, 3.0, 0.01)
+    suite = jr.Record.stack(
+        [
+            jr.Record(3.0 * np.sin(2 * np.pi * t), 0.01),
+            jr.Record(2.0 * np.sin(2 * np.pi * t), 0.01, name="b"),
+        ]
+    )
+    bm = jr.behavior_map([3.0], [1.0], jr.FixedBase(), suite, progress=False)
+    first = bm.select(0)
+    assert isinstance(first.motion, str) and "None" not in first.summary()
+    assert bm.select(1).motion == "b"
+    for name in ("first.npz", "first.nc"):
+        first.save(tmp_path / name)
+        back = jr.BehaviorMap.load(tmp_path / name)
+        assert back.motion == first.motion
+        np.testing.assert_array_equal(back.outcome, first.outcome)
