@@ -120,12 +120,14 @@ def overturning_spectrum(
     axis.
 
     Args:
-        block: the block (one slenderness and one size).
+        block: the block (one slenderness and one size), with its own
+            coefficient of restitution and `friction`, if it has them.
         base: the base (`FixedBase()`, `LinearIsolator(...)`, ...).
         frequency_ratio: omega_p / p (-), a 1-D array of values > 0.
         amplitude_ratio: a_p / (g tan alpha) (-), a 1-D array of values > 0.
         **map_options: passed to `behavior_map` (`duration` in s, `rtol`,
-            `executor`, ...).
+            `executor`, ...; a `restitution_factor`, `restitution` or
+            `friction` that the block sets too is refused).
 
     Returns:
         An `OverturningSpectrum` of shape (n_frequency, n_amplitude).
