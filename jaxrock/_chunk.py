@@ -22,7 +22,7 @@ from ._model import (
     response,
     with_start_conditions,
 )
-from ._results import SolverOptions
+from ._results import SolverOptions, Status
 from ._scene import MotionLayout, closed_form_tail, prepare
 from ._signal import AbstractSignal
 
@@ -225,7 +225,11 @@ class _Chunk(eqx.Module):
         c = jax.vmap(initial_carry, in_axes=self.axes)(*self.inputs(per_lane))
         index = jnp.minimum(cell, self.n - 1)
         later = jax.tree_util.tree_map(lambda x: x[index], self.shared)
-        c = where_lanes(c.rocked | self.pilot, c, later)
+        # A cell whose own block is invalid where its pilot's is not (its
+        # restitution factor: f e0 > 1 on an ensemble's base) keeps its own
+        # carry, over before it starts (INVALID_INPUT).
+        own = c.rocked | self.pilot | (c.status == Status.INVALID_INPUT)
+        c = where_lanes(own, c, later)
         # Of the cell's own block (its pilot's has another size).
         c = jax.vmap(with_start_conditions, in_axes=(0,) + self.axes)(
             c, *self.inputs(per_lane)

@@ -29,6 +29,7 @@ from ._misc import (
     greater_than_zero,
     is_count,
     nonempty,
+    one_real_number,
     parameter,
     real_number,
 )
@@ -48,6 +49,18 @@ def mass_ratio_constraint(value) -> Constraint:
         lambda v: (v > 0) & (v <= MAX_MASS_RATIO),
         f"finite, > 0 and <= {MAX_MASS_RATIO:g}",
     )
+
+
+def _static_eta(x) -> float:
+    """`IntegratedFrictionPendulum.eta` as a Python float (static: each value
+    compiles once), else `ValueError` naming it: not a string, a bool, an
+    array of several values or a traced value."""
+    if isinstance(x, jax.core.Tracer):
+        raise ValueError(
+            "`eta` is static (each value compiles once): give one Python "
+            "number, not a traced value"
+        )
+    return float(one_real_number("eta", x, "finite and >= 1"))
 
 
 class Stop(AbstractChecked):
@@ -1011,7 +1024,7 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         ((3,), 1.5)
     """
 
-    eta: float = eqx.field(default=2.0, static=True, converter=float)
+    eta: float = eqx.field(default=2.0, static=True, converter=_static_eta)
     n_states: ClassVar[int] = 3
 
     def constraints(self):
@@ -1026,7 +1039,16 @@ class IntegratedFrictionPendulum(AbstractFrictionPendulum):
         u_dot = state[1]
         z = state[2]
         abs_z = jnp.abs(z)
-        power = abs_z ** (self.eta - 1.0)  # |z|^eta = |z| power: one pow, not two
+        # |z|^(eta - 1) (|z|^eta = |z| power: one pow, not two), 0 at z = 0
+        # (1 for eta = 1) through a safe base: pow's derivative at 0,
+        # (eta - 1) 0^(eta - 2), is inf for eta < 2, and times a zero
+        # tangent NaN, in every forward-mode derivative from rest.
+        if self.eta == 1.0:
+            power = jnp.ones_like(abs_z)
+        else:
+            moving = abs_z > 0
+            safe = jnp.where(moving, abs_z, 1.0)
+            power = jnp.where(moving, safe ** (self.eta - 1.0), 0.0)
         z_dot = (
             self.A * u_dot
             - self.gamma * jnp.abs(u_dot) * z * power

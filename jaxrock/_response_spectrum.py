@@ -181,8 +181,9 @@ def _peak_displacements(rows, length, coefficients, omega, damping, free=False):
             a21 * u + a22 * v + b0v * a0 + b1v * a1,
         )
         inside = (k + 1 < length)[:, None]
-        last = (k + 2 == length)[:, None]  # (u, v) at the row's last sample
-        end = tuple(jnp.where(last, new, old) for new, old in zip((u, v), end))
+        if free:  # (u, v) at the row's last sample
+            last = (k + 2 == length)[:, None]
+            end = tuple(jnp.where(last, new, old) for new, old in zip((u, v), end))
         peak = jnp.where(inside, jnp.maximum(peak, jnp.abs(u)), peak)
         return (u, v, peak, end), None
 

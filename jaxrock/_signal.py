@@ -173,7 +173,21 @@ def gravities_at(signal: AbstractAcceleration, times):
     return computed_once(jax.vmap(signal.gravity)(jnp.stack(times)))
 
 
-def _below_level_until(signal, t, quiet_below, curvature, start):
+class _Negated(eqx.Module):
+    """-a of a pulse, with a largest step (what `_below_level_until` reads)."""
+
+    pulse: AbstractPulse
+    max_step: Array
+
+    def acceleration(self, t):
+        return -self.pulse.acceleration(t)
+
+    @property
+    def end_time(self):
+        return self.pulse.end_time
+
+
+def _below_level_until(signal, t, quiet_below, curvature, start, one_sided=False):
     """The end of the step from t of a closed-form motion (see `next_kink`):
     with a = x_g''(t), a' its rate and |(x_g'')''| <= `curvature` (m/s^4, a
     bound), |x_g''(t + h)| <= |a| + |a'| h + curvature h^2 / 2, which stays
@@ -186,7 +200,8 @@ def _below_level_until(signal, t, quiet_below, curvature, start):
     now), the step ends `max_step` on, as any step while the ground moves:
     the uplift condition, at g_eff, is located on it."""
     a, rate = jax.jvp(signal.acceleration, (t,), (jnp.ones_like(t),))
-    margin = jnp.maximum(quiet_below - jnp.abs(a), 0.0)
+    # (`one_sided`: a level of a itself, not of |a|.)
+    margin = jnp.maximum(quiet_below - (a if one_sided else jnp.abs(a)), 0.0)
     root = jnp.sqrt(rate * rate + 2.0 * curvature * margin)
     h = 2.0 * margin / jnp.maximum(jnp.abs(rate) + root, jnp.finfo(t.dtype).tiny)
     h = jnp.where(margin > 0, jnp.maximum(h, 1e-3 * signal.max_step), signal.max_step)
@@ -247,14 +262,49 @@ class ClosedFormSignal(AbstractSignal):
     def acceleration_bound(self, t0, t1):
         return self.motion.acceleration_bound(t0, t1)
 
+    @property
+    def _vertical_pulse(self) -> AbstractPulse | None:
+        """The vertical part, where it is a pulse (bounded curvature)."""
+        if isinstance(self.motion, WithVertical) and isinstance(
+            self.motion.vertical, AbstractPulse
+        ):
+            return self.motion.vertical
+        return None
+
     def limits_steps(self, resting: bool) -> bool:
+        if self._vertical_pulse is not None:
+            return True  # (steps end before g_eff could reach 0 unseen)
         return resting and isinstance(self._horizontal, AbstractPulse)
 
     def next_kink(self, t, quiet_below=None, quiet_end=None):
         del quiet_end
-        curvature = self._horizontal.acceleration_curvature
-        start = self._horizontal.start_time
-        return _below_level_until(self, t, quiet_below, curvature, start)
+        end = jnp.inf
+        if quiet_below is not None and isinstance(self._horizontal, AbstractPulse):
+            curvature = self._horizontal.acceleration_curvature
+            start = self._horizontal.start_time
+            end = _below_level_until(self, t, quiet_below, curvature, start)
+        vertical = self._vertical_pulse
+        if vertical is not None:
+            end = jnp.minimum(end, self._above_zero_until(t, vertical))
+        return end
+
+    def _above_zero_until(self, t, vertical: AbstractPulse):
+        """The end of a step from t before which g_eff = g + a_v cannot reach
+        0 (the free flight's condition, which would otherwise dip below 0
+        and back inside one step unseen): `_below_level_until` of -a_v at
+        the level g, with the vertical pulse's curvature, where the vertical
+        part can reach -g at all (inf elsewhere, and once it has ended)."""
+        flipped = _Negated(vertical, self.max_step)
+        end = _below_level_until(
+            flipped,
+            t,
+            jnp.asarray(GRAVITY, dtype=jnp.result_type(t, float)),
+            vertical.acceleration_curvature,
+            vertical.start_time,
+            one_sided=True,
+        )
+        can_fly = vertical.peak_acceleration_bound >= GRAVITY
+        return jnp.where(can_fly & (t < vertical.end_time), end, jnp.inf)
 
     def step_end(self, t0, dt, kink):
         # (The kink only bounds where a block at rest could uplift, and moves

@@ -39,6 +39,32 @@ class WithVertical(AbstractGroundMotion):
     horizontal: AbstractGroundMotion
     vertical: AbstractGroundMotion
 
+    def __check_init__(self):
+        # Built directly, as `with_vertical` builds it: two closed forms (a
+        # record on either side makes a `Record`), the vertical one without
+        # a vertical part of its own (which would be dropped unseen).
+        for name, part in (
+            ("horizontal", self.horizontal),
+            ("vertical", self.vertical),
+        ):
+            if not isinstance(part, AbstractGroundMotion):
+                raise ValueError(
+                    f"`{name}` must be a closed-form ground motion (MPPulse or "
+                    f"SinePulse), got {type(part).__name__}"
+                )
+            if isinstance(part, Record):
+                raise ValueError(
+                    f"`{name}` is a Record: pair a record with "
+                    "`record.with_vertical(vertical)` (or "
+                    "`pulse.with_vertical(record)`), which makes a Record with "
+                    "its vertical samples"
+                )
+        if isinstance(self.vertical, WithVertical):
+            raise ValueError(
+                "`vertical` already has a vertical part (only its horizontal "
+                "part would be read)"
+            )
+
     def acceleration(self, t):
         return self.horizontal.acceleration(t)
 

@@ -239,7 +239,7 @@ def simulate(
     def force_ratio(t, x, s):
         """|R_x| / R_y of the base's force on the block at (t, x)."""
         if s == 0:
-            return abs(abs_base_acc(t, x)) / G
+            return abs(abs_base_acc(t, x)) / gravity(t)
         th, thd = x[0], x[1]
         if s * th >= alpha:
             return 0.0

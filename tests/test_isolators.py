@@ -130,3 +130,22 @@ def test_a_negative_gamma_is_refused(make):
     with pytest.raises(ValueError, match="`gamma` must be finite and >= 0"):
         make(-0.2, 0.3)
     make(0.0, 0.3)  # gamma = 0: z stays within (A / beta)^(1/eta)
+
+
+@pytest.mark.parametrize("eta", [np.array([1.0, 2.0]), "x", True, None])
+def test_a_bad_eta_is_named(eta):
+    with pytest.raises(ValueError, match="`eta`"):
+        jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=eta)
+
+
+def test_a_traced_eta_is_named():
+    with pytest.raises(ValueError, match="`eta` is static"):
+        jax.jit(
+            lambda e: jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=e).friction
+        )(1.5)
+
+
+def test_good_etas_are_python_floats():
+    for eta in (1, 1.5, np.float64(2.5)):
+        base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=eta)
+        assert type(base.eta) is float and base.eta == float(eta)

@@ -267,3 +267,25 @@ def test_a_map_takes_a_batch_of_factors_as_an_axis():
         jr.behavior_map(lam, size, base, pulse, restitution_factor=[1.0, 1.3])
     with pytest.raises(ValueError, match="restitution_factor"):
         jr.behavior_map(lam, size, base, pulse, restitution_factor=[[1.0]])
+
+
+def test_cells_with_f_e0_above_one_are_invalid_input():
+    pulse = jr.near_fault_pulse("San Fernando PCD/SN")
+    base = jr.LinearIsolator(2.0, 0.35, jnp.array([0.1, 0.5]))
+    # lambda = 3: e0 = 0.840 (mass ratio 0.1) and 0.806 (0.5): f = 1.3 breaks both.
+    bm = jr.behavior_map(
+        [3.0], [0.5], base, pulse, restitution_factor=[1.0, 1.3], progress=False
+    )
+    status = np.asarray(bm.status)[:, :, 0, 0]  # (bases, factors)
+    assert (status[:, 0] != jr.Status.INVALID_INPUT).all()
+    assert (status[:, 1] == jr.Status.INVALID_INPUT).all()
+    assert np.isnan(np.asarray(bm.max_rotation)[:, 1]).all()
+    # As `simulate` under `jit` reports the same cell:
+    one = jax.jit(
+        lambda f: jr.simulate(
+            jr.Block(3.0, 0.5, restitution_factor=f),
+            jr.LinearIsolator(2.0, 0.35, 0.1),
+            pulse,
+        )
+    )(1.3)
+    assert int(one.status) == jr.Status.INVALID_INPUT

@@ -406,3 +406,46 @@ def test_max_base_displacement_up_to_the_flight_matches_reference(key, lam, r):
     assert int(ours.status) == int(bm.status[0, 0]) == jr.Status.FREE_FLIGHT
     for mine in (float(ours.max_base_displacement), bm.max_base_displacement[0, 0]):
         assert mine == pytest.approx(theirs["max_base_displacement"], rel=1e-6)
+
+
+HORIZONTAL = jr.SinePulse(0.5, 1.0)  # too weak to rock the block by itself
+
+
+@pytest.mark.parametrize(
+    "base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)], ids=["fixed", "linear"]
+)
+def test_a_shallow_dip_below_minus_g_is_free_flight(base):
+    vertical = jr.SinePulse(9.81 * 1.001, 2.0)  # min g_eff = -0.0098 m/s^2
+    motion = HORIZONTAL.with_vertical(vertical)
+    r = jr.simulate(jr.Block(4.0, 1.0), base, motion)
+    assert int(r.status) == jr.Status.FREE_FLIGHT
+    bm = jr.behavior_map([4.0], [1.0], base, motion, progress=False)
+    assert int(np.asarray(bm.status)[0, 0]) == jr.Status.FREE_FLIGHT
+
+
+def test_a_trough_above_minus_g_is_no_flight():
+    vertical = jr.SinePulse(9.81 * 0.999, 2.0)
+    r = jr.simulate(
+        jr.Block(4.0, 1.0), jr.FixedBase(), HORIZONTAL.with_vertical(vertical)
+    )
+    assert int(r.status) == jr.Status.SUCCESS
+
+
+PULSE = jr.near_fault_pulse("San Fernando PCD/SN")
+SINE = jr.SinePulse(3.0, 2.0)
+RECORD = jr.Record(np.sin(np.arange(200) * 0.05), 0.01)
+
+
+@pytest.mark.parametrize(
+    "horizontal, vertical, name",
+    [
+        (RECORD, SINE, "horizontal"),
+        (PULSE, RECORD, "vertical"),
+        (3.0, SINE, "horizontal"),
+        (PULSE, jr.WithVertical(SINE, PULSE), "vertical"),
+    ],
+    ids=["record-h", "record-v", "number", "nested-v"],
+)
+def test_bad_parts_are_refused_naming_the_part(horizontal, vertical, name):
+    with pytest.raises(ValueError, match=f"`{name}`"):
+        jr.WithVertical(horizontal, vertical)
