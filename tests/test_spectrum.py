@@ -118,16 +118,6 @@ def test_overturning_spectrum_uses_the_blocks_restitution_and_friction():
     assert s.impacts[0, 0] == int(one.impacts)
 
 
-def test_overturning_spectrum_uses_the_blocks_restitution_factor():
-    blk = jr.Block(6.0, 1.0, restitution_factor=0.5)
-    s = jr.overturning_spectrum(blk, jr.FixedBase(), [3.0], [1.5], progress=False)
-    p, up = float(blk.p), float(blk.uplift_acceleration)
-    one = jr.simulate(
-        blk, jr.FixedBase(), jr.SinePulse(1.5 * up, 3.0 * p / (2 * np.pi))
-    )
-    assert (s.outcome[0, 0], s.impacts[0, 0]) == (int(one.outcome), int(one.impacts))
-
-
 def test_overturning_spectrum_refuses_a_restitution_given_twice():
     blk = jr.Block(6.0, 1.0, restitution_factor=0.5)
     with pytest.raises(ValueError, match="restitution_factor"):

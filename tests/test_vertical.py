@@ -411,12 +411,9 @@ def test_max_base_displacement_up_to_the_flight_matches_reference(key, lam, r):
 HORIZONTAL = jr.SinePulse(0.5, 1.0)  # too weak to rock the block by itself
 
 
-@pytest.mark.parametrize(
-    "base", [jr.FixedBase(), jr.LinearIsolator(2.0, 0.35, 0.5)], ids=["fixed", "linear"]
-)
-def test_a_shallow_dip_below_minus_g_is_free_flight(base):
+def test_a_shallow_dip_below_minus_g_is_free_flight():
     vertical = jr.SinePulse(9.81 * 1.001, 2.0)  # min g_eff = -0.0098 m/s^2
-    motion = HORIZONTAL.with_vertical(vertical)
+    motion, base = HORIZONTAL.with_vertical(vertical), jr.FixedBase()
     r = jr.simulate(jr.Block(4.0, 1.0), base, motion)
     assert int(r.status) == jr.Status.FREE_FLIGHT
     bm = jr.behavior_map([4.0], [1.0], base, motion, progress=False)
