@@ -79,6 +79,20 @@ def _mp_acceleration(pulse, t):
     return np.where(np.abs(tau) <= 0.5 * gamma / f, value, 0.0)
 
 
+def _oscillator_displacement(ground, period, damping, end, t, **options):
+    """|u| at times t of u'' + 2 zeta w u' + w^2 u = -x_g''(t) from rest, by
+    SciPy's DOP853 at tight tolerances (`ground`: x_g'' as a function)."""
+    w = 2 * np.pi / period
+
+    def f(time, x):
+        return [x[1], -ground(time) - 2 * damping * w * x[1] - w * w * x[0]]
+
+    sol = integrate.solve_ivp(
+        f, (0.0, end), [0.0, 0.0], "DOP853", dense_output=True, **options
+    )
+    return np.abs(sol.sol(t)[0])
+
+
 def test_spectrum_of_a_pulse_matches_an_ode_solution():
     pulse = jr.near_fault_pulse("San Fernando PCD/SN")
     periods = np.array([0.2, 1.0, 4.0])
@@ -86,23 +100,17 @@ def test_spectrum_of_a_pulse_matches_an_ode_solution():
     end = float(pulse.end_time) + periods.max()
     t = np.linspace(0.0, end, 200001)
     for period, got in zip(periods, s.displacement):
-        w = 2 * np.pi / period
-
-        def f(time, x, w=w):
-            a = _mp_acceleration(pulse, time)
-            return [x[1], -a - 2 * 0.05 * w * x[1] - w * w * x[0]]
-
-        sol = integrate.solve_ivp(
-            f,
-            (0.0, end),
-            [0.0, 0.0],
-            "DOP853",
+        u = _oscillator_displacement(
+            lambda time: _mp_acceleration(pulse, time),
+            period,
+            0.05,
+            end,
+            t,
             rtol=1e-11,
             atol=1e-13,
-            dense_output=True,
         )
         # The pulse on a 1 ms grid: its linear interpolant is within 1e-5.
-        assert got == pytest.approx(np.abs(sol.sol(t)[0]).max(), rel=1e-4)
+        assert got == pytest.approx(u.max(), rel=1e-4)
 
 
 def test_spectrum_of_a_short_pulse_peaks_in_its_free_vibration():
@@ -115,24 +123,18 @@ def test_spectrum_of_a_short_pulse_peaks_in_its_free_vibration():
     for damping in (0.0, 0.05):
         s = jr.response_spectrum(pulse, periods, damping)
         for period, got in zip(periods, s.displacement):
-            w, end = 2 * np.pi / period, 0.1 + 2.5 * period
-
-            def f(time, x, w=w, damping=damping):
-                a = 3.0 * np.sin(20 * np.pi * time) * (time <= 0.1)
-                return [x[1], -a - 2 * damping * w * x[1] - w * w * x[0]]
-
-            sol = integrate.solve_ivp(
-                f,
-                (0.0, end),
-                [0.0, 0.0],
-                "DOP853",
+            end = 0.1 + 2.5 * period
+            t = np.linspace(0.0, end, 400001)
+            u = _oscillator_displacement(
+                lambda time: 3.0 * np.sin(20 * np.pi * time) * (time <= 0.1),
+                period,
+                damping,
+                end,
+                t,
                 rtol=1e-12,
                 atol=1e-15,
-                dense_output=True,
                 max_step=1e-3,
             )
-            t = np.linspace(0.0, end, 400001)
-            u = np.abs(sol.sol(t)[0])
             assert got == pytest.approx(u.max(), rel=1e-5)
             if damping == 0.0 and period == 0.5:
                 assert u.max() > 1.1 * u[t <= 0.1].max()
