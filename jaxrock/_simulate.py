@@ -55,6 +55,7 @@ from ._results import (
     History,
     Response,
     SolverOptions,
+    Status,
 )
 from ._scene import closed_form_tail, prepare
 from ._xla import compiler_accepts
@@ -414,13 +415,16 @@ def _history(block, base, motion, duration, opts, step):
     leaves = [jnp.asarray(np.asarray(x)) for x in leaves]
     specs = tuple(jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves)
     result, rows = _recording_program(treedef, specs)(*leaves)
-    return Response(**result), _history_rows(jax.device_get(rows), grid)
+    response = Response(**result)
+    flight = int(response.status) == Status.FREE_FLIGHT
+    return response, _history_rows(jax.device_get(rows), grid, flight)
 
 
-def _history_rows(rows: dict, grid: np.ndarray) -> History:
+def _history_rows(rows: dict, grid: np.ndarray, flight: bool = False) -> History:
     """The `History` of `_record`'s rows, in order: the start, then for each
     pass of the segment loop its samples, the state at its end and the state
-    after its transition."""
+    after its transition; with `flight` (the analysis ended FREE_FLIGHT), a
+    last "flight" event at its end."""
     size, passes = rows["grid_y"].shape[0], int(rows["passes"])
     taken = np.flatnonzero(rows["grid_pass"] >= 0)
     ends = np.arange(passes)
@@ -458,6 +462,10 @@ def _history_rows(rows: dict, grid: np.ndarray) -> History:
             events.append((t, EventKind.UPLIFT))
     if rows["start_rocked"]:
         events.insert(0, (0.0, EventKind.UPLIFT))
+    # g_eff reached 0 at another event (an uplift where the uplift level
+    # falls to 0 with it), whose kind the pass holds.
+    if flight and (not events or events[-1][1] != EventKind.FLIGHT):
+        events.append((rows["end_t"][passes - 1], EventKind.FLIGHT))
     moving = y.shape[1] > 2  # a base with a state: u and u' lead it
     return History(
         t=column(rows["start_t"], grid, rows["end_t"], rows["end_t"]),

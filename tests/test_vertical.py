@@ -446,3 +446,17 @@ RECORD = jr.Record(np.sin(np.arange(200) * 0.05), 0.01)
 def test_bad_parts_are_refused_naming_the_part(horizontal, vertical, name):
     with pytest.raises(ValueError, match=f"`{name}`"):
         jr.WithVertical(horizontal, vertical)
+
+
+def test_a_history_that_ends_in_flight_names_it_last():
+    """On the friction pendulum g_eff reaches 0 at an uplift (the uplift
+    level falls to 0 with it): the pass holds the uplift, and the history
+    ends with the flight that ends the analysis."""
+    shaken = jr.near_fault_pulse("San Fernando PCD/SN").with_vertical(
+        jr.SinePulse(9.81 * 1.05, 1.0)
+    )
+    base = jr.FrictionPendulum(0.11, 2.24, 0.5)
+    r = jr.simulate(jr.Block(4.0, 1.0), base, shaken, history=True, **TOL)
+    assert int(r.status) == jr.Status.FREE_FLIGHT
+    assert r.history.event_kinds[-2:] == ("uplift", "flight")
+    assert r.history.event_times[-1] == pytest.approx(r.history.t[-1], abs=1e-12)
