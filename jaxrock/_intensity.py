@@ -100,7 +100,17 @@ def _pulse_peaks(motion: AbstractGroundMotion):
     start = np.maximum(np.reshape(np.asarray(flat.start_time), -1), 0.0)
     stop = np.reshape(np.asarray(flat.end_time), -1)
     fraction = np.linspace(0.0, 1.0, _PULSE_POINTS)
-    t = jnp.asarray(start[:, None] + (stop - start)[:, None] * fraction)
+    t = start[:, None] + (stop - start)[:, None] * fraction
+    if isinstance(flat, MPPulse):
+        # A pulse of many cycles (gamma up to 1e5) has fewer points a cycle
+        # than its peaks need: its peaks lie within a cycle of its envelope's
+        # peak t0 (or of where the pulse is cut at t = 0), read there as finely.
+        period = 1.0 / np.reshape(np.asarray(flat.frequency), -1)
+        centre = np.clip(np.reshape(np.asarray(flat.t0), -1), start, stop)
+        low = np.maximum(centre - 2 * period, start)
+        high = np.minimum(centre + 2 * period, stop)
+        t = np.concatenate([t, low[:, None] + (high - low)[:, None] * fraction], 1)
+    t = jnp.asarray(t)
     acc = jax.vmap(lambda m, t: m.acceleration(t))(flat, t)
     vel = jax.vmap(lambda m, t: m.velocity(t))(flat, t)
     return np.abs(np.asarray(acc)).max(axis=1), np.abs(np.asarray(vel)).max(axis=1)

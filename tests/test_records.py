@@ -399,3 +399,36 @@ def test_select_refuses_an_index_out_of_range(index):
     with pytest.raises(ValueError, match=message):
         suite.select(index)
     assert suite.select(-2).name == "a" and suite.select(1).name == "a"
+
+
+def test_upward_ignores_padding_and_stays_vertical():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=500)
+    k = 300
+    padded = jr.Record(a, 0.01, length=k, name="Dam, DWN", rsn=77)
+    alone = jr.Record(a[:k], 0.01, name="Dam, DWN", rsn=77)
+    up_padded, up_alone = jr.records.upward(padded), jr.records.upward(alone)
+    assert int(up_padded.length) == k
+    np.testing.assert_array_equal(up_padded.samples[:k], -a[:k])
+    for m in ("pgd", "sa:5.0", "d5_95"):
+        np.testing.assert_allclose(
+            jr.intensity_measure(up_padded, m),
+            jr.intensity_measure(alone, m),
+            rtol=1e-12,
+        )
+    # Still a vertical component (rotd50 and the CLI refuse it as horizontal),
+    # now upward: turning it upward again leaves it as it is.
+    assert jr.records.is_vertical(up_alone)
+    assert up_alone.rsn == 77
+    assert jr.records.upward(up_alone) is up_alone
+
+
+def test_upward_of_a_suite_member():
+    short = jr.Record(np.sin(np.arange(100) * 0.3) + 0.2, 0.01, name="X, DWN")
+    suite = jr.Record.stack([short, jr.Record(np.ones(400), 0.01, name="X, 90")])
+    up = jr.records.upward(suite.select(0))
+    np.testing.assert_allclose(
+        jr.response_spectrum(up, [5.0]).displacement,
+        jr.response_spectrum(short, [5.0]).displacement,
+        rtol=1e-12,
+    )
