@@ -109,21 +109,6 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         reached, jnp.maximum(c.max_theta, alpha - 2.0 * jnp.arcsin(k)), c.max_theta
     )
 
-    def bisect(_, bounds):  # theta(duration) of a cut lane: x in [k, x]
-        lo, hi = bounds
-        mid = 0.5 * (lo + hi)
-        late = time_from_apex(p, mid, k, mid - k) > t_apex - duration
-        return jnp.where(late, lo, mid), jnp.where(late, mid, hi)
-
-    x_end, _ = jax.lax.cond(
-        jnp.any(cut),
-        lambda: jax.lax.fori_loop(0, 64, bisect, (k, x)),
-        lambda: (k, x),
-    )
-    max_theta = jnp.where(
-        cut, jnp.maximum(max_theta, alpha - 2.0 * jnp.arcsin(x_end)), max_theta
-    )
-
     def going(s):
         return ~s["done"] & (s["segments"] < limit)
 
@@ -149,9 +134,21 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         span = 2.0 * half * (1.0 - e**m) / (1.0 - jnp.minimum(e, 1.0 - 1e-16))
         chain = bounce & counted & (s["t"] + span * (1.0 + 1e-9) <= duration)
         chain = chain & (s["segments"] + 2 * m < limit)
+        # The apex after a rebound: for a lane that was falling when the
+        # ground stopped the highest of the rest of the analysis (the apex of
+        # its energy then is behind it). A window that ends before it keeps
+        # the rebound's (k, apex time), to find theta at the window's end.
+        rebound = going(s) & bounce
+        top = jnp.where(rebound & ~late, alpha - 2.0 * jnp.arcsin(k), 0.0)
+        first_cut = rebound & late & ~s["cut"]
         new = dict(
             t=s["t"] + 2.0 * half,
             k=k,
+            top=jnp.maximum(s["top"], top),
+            cut=s["cut"] | first_cut,
+            cut_k=jnp.where(first_cut, k, s["cut_k"]),
+            cut_apex=jnp.where(first_cut, s["t"] + half, s["cut_apex"]),
+            cut_x=jnp.where(first_cut, x0, s["cut_x"]),
             impacts=s["impacts"] + ~end + jnp.where(chain, m, 0),
             segments=segments + bounce + jnp.where(chain, 2 * m - 1, 0),
             done=end | rest | (bounce & late) | chain,
@@ -161,11 +158,34 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
     s = dict(
         t=t_impact,
         k=k,
+        top=max_theta,
+        # A lane whose window ends before an apex: that apex's k and time,
+        # and x where theta is 0 on its rise.
+        cut=cut,
+        cut_k=k,
+        cut_apex=t_apex,
+        cut_x=x,
         impacts=c.impacts,
         segments=c.segments + apex,  # the apex, or the end before it
         done=~live | cut,
     )
     s = jax.lax.while_loop(lambda s: jnp.any(going(s)), body, s)
+
+    def bisect(_, bounds):  # theta(duration) of a cut lane: x in [k, cut_x]
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        k = s["cut_k"]
+        late = time_from_apex(p, mid, k, mid - k) > s["cut_apex"] - duration
+        return jnp.where(late, lo, mid), jnp.where(late, mid, hi)
+
+    x_end, _ = jax.lax.cond(
+        jnp.any(s["cut"]),
+        lambda: jax.lax.fori_loop(0, 64, bisect, (s["cut_k"], s["cut_x"])),
+        lambda: (s["cut_k"], s["cut_x"]),
+    )
+    max_theta = jnp.where(
+        s["cut"], jnp.maximum(s["top"], alpha - 2.0 * jnp.arcsin(x_end)), s["top"]
+    )
 
     def fields(c):
         return c.max_theta, c.impacts, c.segments, c.done, c.kind

@@ -2,8 +2,11 @@
 its outcome does not depend on a window, and a fate still open at the limit
 is UNDECIDED."""
 
+import math
+
 import numpy as np
 import pytest
+import reference as ref
 
 import jaxrock as jr
 
@@ -102,3 +105,26 @@ def test_a_block_its_base_can_no_longer_lift_is_decided(base):
     bm = jr.behavior_map([2.0, 4.0], [0.5, 1.0], base, zeros, progress=False)
     assert np.all(bm.status == jr.Status.SUCCESS) and bm.counts()["undecided"] == 0
     assert np.all(bm.max_base_displacement == 0.0)
+
+
+def test_a_block_falling_when_the_ground_stops_counts_its_next_apex():
+    """A block falling when a one-sine pulse ends (the ground fed it after
+    its last apex) rebounds to an apex higher than any during the pulse:
+    the closed-form tail of the default analysis and of maps counts it, as
+    the SciPy reference does, and a window that ends on the way up reads
+    theta there, as the integrated tail does."""
+    block, base, motion = jr.Block(10.0, 30.0), jr.FixedBase(), jr.SinePulse(3.0, 2.0)
+
+    def acc(t):
+        return 3.0 * math.sin(4.0 * math.pi * t) if 0.0 <= t <= 0.5 else 0.0
+
+    theirs = ref.simulate(10.0, 30.0, ("fixed",), acc, 3.0, float(motion.max_step))
+    ours = jr.simulate(block, base, motion)
+    assert float(ours.max_rotation) == pytest.approx(theirs["max_rotation"], rel=1e-6)
+    for duration in (None, 0.8):  # 0.8 s: before the rebound's apex
+        bm = jr.behavior_map([10.0], [30.0], base, motion, duration=duration)
+        window = 3.0 if duration is None else duration
+        integrated = jr.simulate(block, base, motion, duration=window, history=True)
+        assert float(bm.max_rotation[0, 0]) == pytest.approx(
+            float(integrated.max_rotation), rel=1e-7
+        )
