@@ -77,6 +77,17 @@ def free_rocking_ready(c: Carry, block, end_time):
     return ~c.done & rocking & (c.t >= end_time) & (x > 0) & (x * x > gap2)
 
 
+def _apex_of(c: Carry, block, ready, x0):
+    """Where a `ready` lane is: x now, k of its energy's apex, the time of
+    that apex (ahead of a rising lane, behind a falling one), and whether it
+    rises."""
+    x, gap2 = _energy(c, block)
+    k = jnp.sqrt(jnp.where(ready, jnp.maximum(x * x - gap2, 0.0), x0 * x0))
+    offset = time_from_apex(block.p, x, k, gap2 / (x + k))
+    rising = c.phase == Phase.RISING
+    return x, k, c.t + jnp.where(rising, offset, -offset), rising
+
+
 def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
     """Finish the `ready` lanes (see `free_rocking_ready`) as `simulate`'s
     segment loop would: their apexes and impacts (with the rest rule) up to
@@ -92,13 +103,8 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         gap2 = x0 * x0 - k * k  # (theta' / 2p)^2 at the impact
         return time_from_apex(p, x0, k, gap2 / (x0 + k), iterations)
 
-    # Where the lane is: its apex (k, from the energy) and |t - t_apex|.
-    x, gap2 = _energy(c, block)
-    k = jnp.sqrt(jnp.where(ready, jnp.maximum(x * x - gap2, 0.0), x0 * x0))
-    apex_offset = time_from_apex(p, x, k, gap2 / (x + k))
-    rising = c.phase == Phase.RISING
-    t_apex = c.t + apex_offset
-    t_impact = jnp.where(rising, t_apex, c.t - apex_offset) + apex_to_impact(k)
+    x, k, t_apex, rising = _apex_of(c, block, ready, x0)
+    t_impact = t_apex + apex_to_impact(k)
     # The apex ahead of a rising lane is the highest of the rest of the analysis
     # (energy only falls from here), unless `duration` comes first.
     live = ready & (c.segments < limit)
@@ -170,22 +176,7 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
         done=~live | cut,
     )
     s = jax.lax.while_loop(lambda s: jnp.any(going(s)), body, s)
-
-    def bisect(_, bounds):  # theta(duration) of a cut lane: x in [k, cut_x]
-        lo, hi = bounds
-        mid = 0.5 * (lo + hi)
-        k = s["cut_k"]
-        late = time_from_apex(p, mid, k, mid - k) > s["cut_apex"] - duration
-        return jnp.where(late, lo, mid), jnp.where(late, mid, hi)
-
-    x_end, _ = jax.lax.cond(
-        jnp.any(s["cut"]),
-        lambda: jax.lax.fori_loop(0, 64, bisect, (s["cut_k"], s["cut_x"])),
-        lambda: (s["cut_k"], s["cut_x"]),
-    )
-    max_theta = jnp.where(
-        s["cut"], jnp.maximum(s["top"], alpha - 2.0 * jnp.arcsin(x_end)), s["top"]
-    )
+    max_theta = _max_theta(p, alpha, s, duration)
 
     def fields(c):
         return c.max_theta, c.impacts, c.segments, c.done, c.kind
@@ -194,6 +185,28 @@ def free_rocking(c: Carry, block, base, duration, opts, ready) -> Carry:
     return eqx.tree_at(
         fields, c, tuple(jnp.where(ready, n, o) for n, o in zip(new, fields(c)))
     )
+
+
+def _max_theta(p, alpha, s, duration):
+    """max |theta| of the lanes of `free_rocking`'s loop state `s`: its apexes
+    (s["top"]), or theta at `duration` where the window ends on a rise
+    from x = s["cut_x"] toward the apex s["cut_k"] at s["cut_apex"], by
+    bisection on the time from the apex (64 halvings)."""
+    k = s["cut_k"]
+
+    def bisect(_, bounds):
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        late = time_from_apex(p, mid, k, mid - k) > s["cut_apex"] - duration
+        return jnp.where(late, lo, mid), jnp.where(late, mid, hi)
+
+    x_end = jax.lax.cond(
+        jnp.any(s["cut"]),
+        lambda: jax.lax.fori_loop(0, 64, bisect, (k, s["cut_x"]))[0],
+        lambda: k,
+    )
+    at_end = alpha - 2.0 * jnp.arcsin(x_end)
+    return jnp.where(s["cut"], jnp.maximum(s["top"], at_end), s["top"])
 
 
 def _impacts_to_rest(block, e, theta_dot_squared, opts):
