@@ -260,22 +260,13 @@ def test_a_record_scaled_by_a_traced_factor_differentiates():
 
 @pytest.mark.parametrize("eta", [1.0, 1.5])
 def test_rates_tangent_at_rest_is_finite(eta):
+    """An integrated friction pendulum's |z|^(eta - 1) at rest (z = 0) for
+    1 <= eta < 2: its tangent is finite (pow's derivative at 0 is inf, which
+    times a zero tangent is NaN, and stopped every forward-mode derivative of
+    an analysis from rest)."""
     base = jr.IntegratedFrictionPendulum(0.11, 2.24, 0.5, eta=eta)
     state = base.initial_state()
     _, tangent = jax.jvp(
         lambda s: base.rates(s, jnp.asarray(0.0)), (state,), (jnp.ones_like(state),)
     )
     assert np.all(np.isfinite(tangent))
-
-
-def test_jacfwd_of_max_base_displacement_matches_differences():
-    def peak_u(mu):
-        base = jr.IntegratedFrictionPendulum(mu, 2.24, 0.5, eta=1.5)
-        return jr.simulate(
-            jr.Block(4.0, 0.3), base, PULSE, rtol=1e-10, atol=1e-12
-        ).max_base_displacement
-
-    h = 1e-5
-    central = (float(peak_u(0.11 + h)) - float(peak_u(0.11 - h))) / (2 * h)
-    derivative = float(jax.jacfwd(peak_u)(0.11))
-    assert derivative == pytest.approx(central, rel=1e-4)
