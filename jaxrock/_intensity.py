@@ -316,10 +316,7 @@ def _peak_measure(motion, name, slenderness, size, baseline=False):
         v, d, _, _ = _integrals(samples.rows, samples.dt, samples.length)
         if baseline:
             v, _ = _baseline_corrected(v, d, samples.dt, samples.length)
-        # Over each row's own `length` samples: the rest is padding.
-        inside = np.arange(samples.rows.shape[1]) < samples.length[:, None]
-        peaks = np.where(inside, np.abs(samples.rows), 0.0).max(axis=1)
-        pga = samples.per_member(peaks)
+        pga = np.asarray(motion.peak_acceleration)  # (its padding left out)
         pgv = samples.per_member(np.abs(v).max(axis=1))
     else:
         shape = tuple(motion.batch_shape)
